@@ -1,0 +1,181 @@
+"""Narrow phase: one vectorised kernel per pair kind (paper Section 3).
+
+Each kernel maps a batch of candidate pairs to fixed slots of contact records plus a
+geometric admissibility mask; the gap test against the detection distance is applied
+afterwards for all slots at once (``detect``). Kinds:
+
+* particle-particle (PP I outside, PP II inside a ring): one slot per pair;
+* particle-polygon: one slot per edge (PB I, and II for hollow shapes) and one per
+  vertex (PB III from outside, PB IV: a vertex of a polygon inside a ring's hole);
+* polygon-polygon: vertex-edge slots in both directions. Edge-edge contact emerges as
+  two vertex-edge contacts; vertex-vertex contact is reduced to the one vertex-edge pair
+  (out of four) whose edge line best separates the two corners (Shi's rule).
+"""
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from jaxdda.types import B_HOLE, B_LINE, B_POINT, RING, Contacts, Model
+
+# A vertex's wedge may cross an edge line by this much (sine of the angle) and still
+# count as touching it from outside: edge-edge contacts are parallel up to round-off.
+WEDGE_TOL = 1e-7
+# A polygon vertex may lie this fraction of the smaller body's size behind an edge and
+# still be held by it (recovers from small penetrations without catching back edges).
+PENETRATION_FRACTION = 0.1
+
+
+def _cyclic(n_vertices: jax.Array, v_max: int):
+    idx = jnp.arange(v_max)
+    n = n_vertices[..., None]
+    return jnp.where(idx + 1 < n, idx + 1, 0), jnp.where(idx > 0, idx - 1, n - 1)
+
+
+def _take(x: jax.Array, index: jax.Array) -> jax.Array:
+    """x (P, V, 2) gathered along V with index (P, V)."""
+    return jnp.take_along_axis(x, index[..., None], axis=1)
+
+
+def _record(a, b, ra, pa, btype, rb, qb, eb, key) -> Contacts:
+    shape = jnp.broadcast_shapes(*(jnp.shape(x) for x in (a, b, ra, btype, rb, key)),
+                                 *(jnp.shape(x)[:-1] for x in (pa, qb, eb)))
+    bc = lambda x: jnp.broadcast_to(x, shape)
+    bc2 = lambda x: jnp.broadcast_to(x, shape + (2,))
+    return Contacts(
+        valid=jnp.zeros(shape, bool), a=bc(a).astype(jnp.int32), b=bc(b).astype(jnp.int32),
+        ra=bc(ra), pa=bc2(pa), btype=bc(btype).astype(jnp.int32), rb=bc(rb), qb=bc2(qb),
+        eb=bc2(eb), key=bc(key).astype(jnp.int64))
+
+
+def particle_particle(model: Model, centroid: jax.Array, i: jax.Array, j: jax.Array):
+    """PP I (outside) and PP II (inside a ring's hole); one slot per pair (P,)."""
+    dist = jnp.linalg.norm(centroid[i] - centroid[j], axis=-1)
+    r_i, r_j = model.radius[i], model.radius[j]
+    i_in_j = (model.kind[j] == RING) & (dist < model.inner_radius[j]) & (r_i < model.inner_radius[j])
+    j_in_i = (model.kind[i] == RING) & (dist < model.inner_radius[i]) & (r_j < model.inner_radius[i]) & ~i_in_j
+    a = jnp.where(j_in_i, j, i)
+    b = jnp.where(j_in_i, i, j)
+    ra = jnp.where(j_in_i, r_j, r_i)
+    hole = i_in_j | j_in_i
+    rb = jnp.where(i_in_j, model.inner_radius[j], jnp.where(j_in_i, model.inner_radius[i], r_j))
+    zero = jnp.zeros(i.shape + (2,))
+    rec = _record(a, b, ra, zero, jnp.where(hole, B_HOLE, B_POINT), rb, zero, zero, 0)
+    return jax.tree.map(lambda x: x[:, None], rec), jnp.ones(i.shape + (1,), bool)
+
+
+def particle_polygon(model: Model, centroid: jax.Array, verts: jax.Array, p: jax.Array, q: jax.Array):
+    """Particle p against polygon q: slots (P, 2V) = V edge slots then V vertex slots."""
+    v_max = model.max_vertices
+    c = centroid[p][:, None, :]  # (P, 1, 2)
+    radius = model.radius[p][:, None]
+    inner = model.inner_radius[p][:, None]
+    v = verts[q]  # (P, V, 2)
+    mask = model.vertex_mask[q]
+    nxt, prv = _cyclic(model.n_vertices[q], v_max)
+    vn, vp = _take(v, nxt), _take(v, prv)
+    inside_ring = ((model.kind[p] == RING)
+                   & (jnp.linalg.norm(centroid[q] - centroid[p], axis=-1) < model.inner_radius[p]))[:, None]
+
+    # Edges (PB I): the centre projects onto the edge, from its outer side.
+    e = vn - v
+    t = jnp.sum((c - v) * e, -1) / jnp.maximum(jnp.sum(e * e, -1), 1e-300)
+    out_n = jnp.stack([e[..., 1], -e[..., 0]], -1)
+    s = jnp.sum(out_n * (c - v), -1)
+    edge_ok = mask & ~inside_ring & (t >= 0) & (t <= 1) & (s >= 0)
+    local = model.local_vertices[q]
+    edge = _record(p[:, None], q[:, None], radius, jnp.zeros(2), B_LINE, 0.0, local, _take(local, nxt),
+                   jnp.arange(v_max)[None, :])
+
+    # Vertices: PB III (a convex corner touched from outside, centre in its normal cone)
+    # or PB IV (a vertex inside a ring's hole).
+    convex = (vp[..., 0] - v[..., 0]) * (vn[..., 1] - v[..., 1]) - (vp[..., 1] - v[..., 1]) * (vn[..., 0] - v[..., 0]) < 0
+    cone = (jnp.sum((c - v) * (v - vp), -1) > 0) & (jnp.sum((c - v) * (vn - v), -1) < 0)
+    corner_ok = mask & ~inside_ring & convex & cone
+    hole_ok = mask & inside_ring
+    ring_is_a = ~inside_ring
+    vert = _record(
+        jnp.where(ring_is_a, p[:, None], q[:, None]), jnp.where(ring_is_a, q[:, None], p[:, None]),
+        jnp.where(ring_is_a, radius, 0.0), jnp.where(ring_is_a[..., None], 0.0, local),
+        jnp.where(ring_is_a, B_POINT, B_HOLE), jnp.where(ring_is_a, 0.0, inner),
+        jnp.where(ring_is_a[..., None], local, 0.0), jnp.zeros(2), v_max + jnp.arange(v_max)[None, :])
+    records = jax.tree.map(lambda x, y: jnp.concatenate([x, y], 1), edge, vert)
+    return records, jnp.concatenate([edge_ok, corner_ok | hole_ok], 1)
+
+
+def _vertex_edge_terms(vx, nx, px, vy, ny):
+    """For vertices of X (P, V, 2) against edges of Y: signed distance s, projection t and
+    clearance (how far X's corner wedge stays outside the edge line), each (P, Vx, Vy)."""
+    e = ny - vy
+    length = jnp.sqrt(jnp.maximum(jnp.sum(e * e, -1), 1e-300))
+    out_n = jnp.stack([e[..., 1], -e[..., 0]], -1) / length[..., None]  # (P, Vy, 2)
+    rel = vx[:, :, None, :] - vy[:, None, :, :]  # (P, Vx, Vy, 2)
+    s = jnp.sum(rel * out_n[:, None], -1)
+    t = jnp.sum(rel * e[:, None], -1) / (length * length)[:, None, :]
+
+    def unit(w):
+        return w / jnp.sqrt(jnp.maximum(jnp.sum(w * w, -1), 1e-300))[..., None]
+
+    u_prev, u_next = unit(px - vx), unit(nx - vx)  # (P, Vx, 2)
+    clear = jnp.minimum(jnp.einsum("pvk,pek->pve", u_prev, out_n), jnp.einsum("pvk,pek->pve", u_next, out_n))
+    return s, t, clear
+
+
+def polygon_polygon(model: Model, verts: jax.Array, i: jax.Array, j: jax.Array, near_dist: jax.Array):
+    """Polygons i (A) and j (B): slots (P, 2 V^2): A's vertices on B's edges, then B's on A's.
+
+    ``near_dist`` (P,): two vertices closer than this form a vertex-vertex contact.
+    """
+    v_max = model.max_vertices
+    va, vb = verts[i], verts[j]
+    ma, mb = model.vertex_mask[i], model.vertex_mask[j]
+    na, pa = _cyclic(model.n_vertices[i], v_max)
+    nb, pb = _cyclic(model.n_vertices[j], v_max)
+    van, vap, vbn, vbp = _take(va, na), _take(va, pa), _take(vb, nb), _take(vb, pb)
+    s_ab, t_ab, c_ab = _vertex_edge_terms(va, van, vap, vb, vbn)  # (P, Va, Eb)
+    s_ba, t_ba, c_ba = _vertex_edge_terms(vb, vbn, vbp, va, van)  # (P, Vb, Ea)
+
+    pen = -PENETRATION_FRACTION * jnp.minimum(model.bound_radius[i], model.bound_radius[j])[:, None, None]
+    pair_mask = ma[:, :, None] & mb[:, None, :]
+    near = pair_mask & (jnp.linalg.norm(va[:, :, None] - vb[:, None, :], axis=-1) <= near_dist[:, None, None])
+
+    def gather_e(x, idx):  # x (P, V, E), pick column idx (P, E-index per column)
+        return jnp.take_along_axis(x, jnp.broadcast_to(idx[:, None, :], x.shape), axis=2)
+
+    def gather_v(x, idx):  # pick row idx (P, V) -> (P, V, E)
+        return jnp.take_along_axis(x, jnp.broadcast_to(idx[:, :, None], x.shape), axis=1)
+
+    # Vertex-vertex (a of A near b of B): four candidate vertex-edge pairs; keep the best.
+    cand = jnp.stack([
+        gather_e(c_ab, pb),                         # a on B's edge ending at b
+        c_ab,                                       # a on B's edge starting at b
+        jnp.swapaxes(gather_e(c_ba, pa), 1, 2),     # b on A's edge ending at a
+        jnp.swapaxes(c_ba, 1, 2),                   # b on A's edge starting at a
+    ], -1)  # (P, Va, Vb, 4)
+    winner = jnp.argmax(cand, -1)
+
+    def interior(s, t, clear, near_start, near_end, mask):
+        return (mask & ~near_start & ~near_end & (t >= 0) & (t <= 1) & (s >= pen) & (clear >= -WEDGE_TOL))
+
+    # A's vertex a on B's edge e = (b_e -> b_{e+1}).
+    near_end_ab = gather_e(near, nb)
+    win_end_ab = gather_e(winner, nb)
+    vv_ab = (near & (winner == 1)) | (near_end_ab & (win_end_ab == 0))
+    ok_ab = interior(s_ab, t_ab, c_ab, near, near_end_ab, pair_mask) | (vv_ab & pair_mask)
+    # B's vertex b on A's edge f = (a_f -> a_{f+1}).
+    near_t, win_t = jnp.swapaxes(near, 1, 2), jnp.swapaxes(winner, 1, 2)  # (P, Vb, Va)
+    near_end_ba = gather_e(near_t, na)
+    win_end_ba = gather_e(win_t, na)
+    mask_ba = jnp.swapaxes(pair_mask, 1, 2)
+    vv_ba = (near_t & (win_t == 3)) | (near_end_ba & (win_end_ba == 2))
+    ok_ba = interior(s_ba, t_ba, c_ba, near_t, near_end_ba, mask_ba) | (vv_ba & mask_ba)
+
+    la, lb = model.local_vertices[i], model.local_vertices[j]
+    vi = jnp.arange(v_max)
+    rec_ab = _record(i[:, None, None], j[:, None, None], 0.0, la[:, :, None, :], B_LINE, 0.0,
+                     lb[:, None, :, :], _take(lb, nb)[:, None, :, :], vi[:, None] * v_max + vi[None, :])
+    rec_ba = _record(j[:, None, None], i[:, None, None], 0.0, lb[:, :, None, :], B_LINE, 0.0,
+                     la[:, None, :, :], _take(la, na)[:, None, :, :], v_max * v_max + vi[:, None] * v_max + vi[None, :])
+    flat = lambda x: x.reshape((x.shape[0], v_max * v_max) + x.shape[3:])
+    records = jax.tree.map(lambda x, y: jnp.concatenate([flat(x), flat(y)], 1), rec_ab, rec_ba)
+    return records, jnp.concatenate([flat(ok_ab), flat(ok_ba)], 1)

@@ -1,0 +1,75 @@
+"""The examples of the paper's Section 7, with the geometry of validation-cases.md.
+
+``heavy=True`` builds every fixed body the paper's way: free, with a density 1e11
+times larger and no weight of its own.
+"""
+from __future__ import annotations
+
+from jaxdda.scene.builder import Scene, SceneBuilder
+
+G = 10.0
+HEAVY = 1e11
+
+
+def _support(sb: SceneBuilder, heavy: bool, density: float, **kw) -> int:
+    """A fixed body, or the paper's stand-in for one."""
+    if heavy:
+        return sb.add_polygon(density=HEAVY * density, gravity=False, **kw) if "vertices" in kw else \
+            sb.add_ring(density=HEAVY * density, gravity=False, **kw)
+    return sb.add_polygon(density=density, fixed=True, **kw) if "vertices" in kw else \
+        sb.add_ring(density=density, fixed=True, **kw)
+
+
+def _rect(x0, y0, x1, y1):
+    return [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]
+
+
+def _frame(sb: SceneBuilder, half: float, thickness: float, heavy: bool, density: float) -> None:
+    """Four walls around the square [-half, half]^2."""
+    h, t = half, thickness
+    for rect in (_rect(-h - t, -h - t, -h, h + t), _rect(h, -h - t, h + t, h + t),
+                 _rect(-h, -h - t, h, -h), _rect(-h, h, h, h + t)):
+        _support(sb, heavy, density, vertices=rect)
+
+
+def disk_heap(heavy: bool = False) -> Scene:
+    """7.1: three disks R = 10 stacked on a base; F = G, 2G, 3G."""
+    sb = SceneBuilder(dt=0.001, gravity=(0.0, -G), name="paper-7.1")
+    for y in (10.0, 30.0, 50.0):
+        sb.add_disk(center=(0.0, y), radius=10.0, density=2500.0)
+    _support(sb, heavy, 2500.0, vertices=_rect(-40.0, -10.0, 40.0, 0.0))
+    return sb.build()
+
+
+def block_stair(heavy: bool = False) -> Scene:
+    """7.2: four 20 x 10 blocks as a staircase; base reactions W/2 and 7W/2."""
+    sb = SceneBuilder(dt=0.001, gravity=(0.0, -G), name="paper-7.2")
+    for k, x0 in enumerate((15.0, 10.0, 5.0, 0.0)):  # B1 (top) ... B4 (bottom)
+        y0 = 10.0 * (3 - k)
+        sb.add_polygon(vertices=_rect(x0, y0, x0 + 20.0, y0 + 10.0), density=2000.0)
+    _support(sb, heavy, 2000.0, vertices=_rect(-20.0, -10.0, 60.0, 0.0))
+    return sb.build()
+
+
+def ring_in_frame(heavy: bool = False) -> Scene:
+    """7.3: a ring (radii 1, 3) bouncing in a square frame of inner side 40, no gravity."""
+    sb = SceneBuilder(dt=0.05, gravity=(0.0, 0.0), name="paper-7.3")
+    sb.add_ring(center=(0.0, 0.0), inner_radius=1.0, outer_radius=3.0, density=2500.0, velocity=(2.5, 5.0))
+    _frame(sb, 20.0, 5.0, heavy, 2500.0)
+    return sb.build()
+
+
+def block_in_frame(heavy: bool = False) -> Scene:
+    """7.4: a 20 x 20 block bouncing in a square frame of inner side 120, no gravity."""
+    sb = SceneBuilder(dt=0.01, gravity=(0.0, 0.0), name="paper-7.4")
+    sb.add_polygon(vertices=_rect(-10.0, -10.0, 10.0, 10.0), density=2300.0, velocity=(2.5, 5.0))
+    _frame(sb, 60.0, 10.0, heavy, 2300.0)
+    return sb.build()
+
+
+def disk_in_ring(heavy: bool = False) -> Scene:
+    """7.5: a disk R = 40 released inside a fixed ring of inner radius 100 (a pendulum)."""
+    sb = SceneBuilder(dt=0.005, gravity=(0.0, -G), name="paper-7.5")
+    sb.add_disk(center=(-60.0, 0.0), radius=40.0, density=1.0)
+    _support(sb, heavy, 1.0, center=(0.0, 0.0), inner_radius=100.0, outer_radius=110.0)
+    return sb.build()

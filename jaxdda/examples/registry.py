@@ -1,0 +1,39 @@
+"""Name -> scene factory table of the built-in examples."""
+from __future__ import annotations
+
+from jaxdda.examples import paper
+from jaxdda.scene.builder import Scene
+
+_EXAMPLES = {
+    "paper-7.1": (paper.disk_heap, 100, "three disks stacked on a fixed base (static contact forces)"),
+    "paper-7.2": (paper.block_stair, 100, "four blocks as a staircase (edge-edge contacts, statics)"),
+    "paper-7.3": (paper.ring_in_frame, 2050, "a ring bouncing in a square frame (impacts, no lag)"),
+    "paper-7.4": (paper.block_in_frame, 10000, "a block bouncing in a square frame (no rotation)"),
+    "paper-7.5": (paper.disk_in_ring, 4000, "a disk sliding inside a ring: a frictionless pendulum"),
+}
+
+
+def names() -> list[str]:
+    """Names of the built-in examples."""
+    return list(_EXAMPLES)
+
+
+def _entry(name: str):
+    if name not in _EXAMPLES:
+        raise KeyError(f"unknown example {name!r}; known: {', '.join(_EXAMPLES)}")
+    return _EXAMPLES[name]
+
+
+def get(name: str, *, heavy: bool = False) -> Scene:
+    """The example scene ``name``. ``heavy=True``: fixed bodies as the paper built them
+    (free, 1e11 times denser, weightless) instead of with zero flexibility."""
+    return _entry(name)[0](heavy=heavy)
+
+
+def default_steps(name: str) -> int:
+    """The number of steps the paper ran the example for."""
+    return _entry(name)[1]
+
+
+def describe(name: str) -> str:
+    return _entry(name)[2]

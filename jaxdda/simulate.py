@@ -1,0 +1,129 @@
+"""Host driver: run a scene in jit-compiled chunks, regrow overflowing buffers, collect output."""
+from __future__ import annotations
+
+import dataclasses
+import functools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxdda.errors import CapacityError
+from jaxdda.scene.builder import Scene
+from jaxdda.step import step
+from jaxdda.types import Capacities, ContactReport, Model, Params, State, StepInfo
+
+MAX_REGROW = 8
+
+
+@dataclasses.dataclass
+class Trajectory:
+    """A simulated run, as numpy arrays. Index 0 is the initial state; step k ends at k.
+
+    ``info`` holds one StepInfo entry per step (arrays of length N); ``info.contacts``
+    the per-step contact report, padded to the largest contact capacity of the run.
+    """
+
+    scene: Scene
+    time: np.ndarray  # (N+1,)
+    centroid: np.ndarray  # (N+1, bodies, 2)
+    rotation: np.ndarray  # (N+1, bodies)
+    velocity: np.ndarray  # (N+1, bodies, 3): vx, vy, omega
+    info: StepInfo
+    final_state: State
+
+    @property
+    def steps(self) -> int:
+        return len(self.time) - 1
+
+    def force_between(self, i: int, j: int) -> np.ndarray:
+        """(N, 2): the resultant contact force that body i exerts on body j in each step
+        (global frame, step average: impact impulses count as impulse / dt)."""
+        c = self.info.contacts
+        on_a = np.where(c.valid[..., None], c.force, 0.0)  # force on a from b
+        from_i_on_j = ((c.a == j) & (c.b == i))[..., None] * on_a - ((c.a == i) & (c.b == j))[..., None] * on_a
+        return from_i_on_j.sum(axis=1)
+
+
+def _run_chunk(model: Model, state: State, params: Params, n_valid, length: int):
+    """Scan ``length`` steps; steps at index >= n_valid leave the state unchanged."""
+    def body(s, k):
+        s2, info = step(model, s, params)
+        keep = k < n_valid
+        s2 = jax.tree.map(lambda new, old: jnp.where(keep, new, old), s2, s)
+        return s2, (s2.time, s2.centroid, s2.rotation, s2.velocity[:, :3], info)
+
+    return jax.lax.scan(body, state, jnp.arange(length))
+
+
+_run_chunk_jit = jax.jit(_run_chunk, static_argnames=("length",))
+
+
+def with_capacity(model: Model, state: State, capacity: Capacities) -> tuple[Model, State]:
+    """The same model with new buffer capacities, and the state's contact memory re-padded."""
+    c = capacity.contacts
+    old = state.contact_key.shape[0]
+    if c >= old:
+        key = jnp.concatenate([state.contact_key, -jnp.ones((c - old,), jnp.int64)])
+        force = jnp.concatenate([state.contact_force, jnp.zeros((c - old, 2))])
+    else:
+        key, force = state.contact_key[:c], state.contact_force[:c]
+    return dataclasses.replace(model, capacity=capacity), dataclasses.replace(state, contact_key=key, contact_force=force)
+
+
+def simulate(scene: Scene, steps: int, *, params: Params | None = None, chunk: int = 2000) -> Trajectory:
+    """Run ``steps`` steps of ``scene`` and return the trajectory.
+
+    Runs in chunks of at most ``chunk`` steps (one compilation for any ``steps``). When
+    a buffer overflows in a chunk, its capacity is grown from the counts the step
+    reported and the chunk is run again from its start, so no contact is ever lost.
+    Raises CapacityError if that does not settle within a few regrowths.
+    """
+    if int(steps) != steps or steps < 0:
+        raise ValueError(f"steps must be a non-negative integer, got {steps!r}")
+    params = scene.params if params is None else params
+    model, state = scene.model, scene.state
+    length = max(1, min(int(chunk), int(steps)))
+    pieces, done = [], 0
+    while done < steps:
+        n_valid = min(length, steps - done)
+        for _ in range(MAX_REGROW):
+            end, out = _run_chunk_jit(model, state, params, n_valid, length=length)
+            info = out[-1]
+            if not bool(np.any(np.asarray(info.overflow)[:n_valid])):
+                break
+            needed = Capacities(*np.asarray(info.needed)[:n_valid].max(0).tolist())
+            model, state = with_capacity(model, state, model.capacity.grown(needed))
+        else:
+            raise CapacityError(f"contact buffers kept overflowing after {MAX_REGROW} regrowths "
+                                f"(capacity {model.capacity})")
+        pieces.append(jax.tree.map(lambda x: np.asarray(x)[:n_valid], out))
+        state, done = end, done + n_valid
+
+    return _assemble(scene, pieces, state)
+
+
+def _pad_contacts(report: ContactReport, width: int) -> ContactReport:
+    def pad(x):
+        extra = width - x.shape[1]
+        if extra == 0:
+            return x
+        fill = np.zeros((x.shape[0], extra) + x.shape[2:], x.dtype)
+        return np.concatenate([x, fill], 1)
+
+    return jax.tree.map(pad, report)
+
+
+def _assemble(scene: Scene, pieces, final_state: State) -> Trajectory:
+    s0 = scene.state
+    first = (np.asarray(s0.time)[None], np.asarray(s0.centroid)[None], np.asarray(s0.rotation)[None],
+             np.asarray(s0.velocity)[None, :, :3])
+    if pieces:
+        width = max(p[4].contacts.valid.shape[1] for p in pieces)
+        pieces = [p[:4] + (dataclasses.replace(p[4], contacts=_pad_contacts(p[4].contacts, width)),) for p in pieces]
+        cols = [np.concatenate([f] + [p[k] for p in pieces]) for k, f in enumerate(first)]
+        info = jax.tree.map(lambda *xs: np.concatenate(xs), *[p[4] for p in pieces])
+    else:
+        cols = list(first)
+        info = None
+    return Trajectory(scene, cols[0], cols[1], cols[2], cols[3], info, final_state)

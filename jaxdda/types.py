@@ -1,0 +1,147 @@
+"""The data of a simulation: Model (static), State (evolves), Params (differentiable).
+
+Every body carries 6 generalised dof slots ``[u0, v0, theta, eps_x, eps_y, gamma_xy]``
+(paper eq. 6); a per-body projector selects the active subspace (rigid: the first 3,
+eq. 1; fixed: none), so one batched 6x6 code path serves every kind of body.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+
+from jaxdda._pytree import pytree_dataclass, static_field
+
+DISK, RING, POLYGON = 0, 1, 2
+KIND_NAMES = {DISK: "disk", RING: "ring", POLYGON: "polygon"}
+NDOF = 6
+
+# Contact "b-side" feature types (the a-side is always a point with a radius).
+B_POINT, B_HOLE, B_LINE = 0, 1, 2
+
+
+@dataclasses.dataclass(frozen=True)
+class Capacities:
+    """Static sizes of the padded buffers. Each reports overflow; the driver regrows."""
+
+    sweep: int  # sort-and-sweep candidates (boxes overlapping along the sweep axis)
+    pairs_pp: int  # particle-particle candidate pairs
+    pairs_pb: int  # particle-polygon candidate pairs
+    pairs_bb: int  # polygon-polygon candidate pairs
+    contacts: int  # contacts after the narrow phase
+
+    def grown(self, needed: "Capacities") -> "Capacities":
+        """Capacities large enough for ``needed`` with head-room (x1.5, at least x2 of a full one)."""
+        def grow(cap: int, need: int) -> int:
+            return cap if need <= cap else max(2 * cap, int(need * 1.5) + 1)
+
+        return Capacities(*(grow(c, n) for c, n in zip(dataclasses.astuple(self), dataclasses.astuple(needed))))
+
+
+@pytree_dataclass
+class Model:
+    """Geometry and topology of a scene: what does not change in a step, and no gradient.
+
+    Arrays are per body (N,) unless noted. Polygons are padded to ``max_vertices`` and
+    stored counter-clockwise, relative to their centroid, at rotation 0.
+    """
+
+    kind: jax.Array  # (N,) int32: DISK, RING or POLYGON
+    fixed: jax.Array  # (N,) bool: zero flexibility
+    radius: jax.Array  # (N,) outer radius of a disk or ring, 0 for polygons
+    inner_radius: jax.Array  # (N,) inner radius of a ring, 0 otherwise
+    local_vertices: jax.Array  # (N, V, 2)
+    vertex_mask: jax.Array  # (N, V) bool
+    n_vertices: jax.Array  # (N,) int32
+    area: jax.Array  # (N,)
+    polar_moment: jax.Array  # (N,) integral of r^2 dA about the centroid
+    bound_radius: jax.Array  # (N,) largest distance from the centroid to the boundary
+    gravity_scale: jax.Array  # (N,) 1.0 where gravity acts, 0.0 where it is ignored
+    material: jax.Array  # (N,) int32 index into the material tables of Params
+    dof_projector: jax.Array  # (N, 6, 6) projector onto the active dof subspace
+    capacity: Capacities = static_field()
+    n_bodies: int = static_field()
+    max_vertices: int = static_field()
+
+
+@pytree_dataclass
+class Params:
+    """Every float a gradient can reach: time step, loads, material and solver settings."""
+
+    dt: jax.Array  # ()
+    gravity: jax.Array  # (2,)
+    density: jax.Array  # (N,)
+    friction: jax.Array  # (M, M) Coulomb coefficient per material pair (eq. 19)
+    restitution: jax.Array  # (M, M) Newton restitution per material pair
+    tol: jax.Array  # () relative tolerance of the contact solve
+    max_iter: jax.Array  # () iteration cap of the contact solve (a float, so grad ignores it)
+    margin: jax.Array  # () base contact detection distance d0 (added to the swept distance)
+
+
+@pytree_dataclass
+class State:
+    """What evolves: time, pose and velocity per body, and contact memory (warm start)."""
+
+    time: jax.Array  # ()
+    centroid: jax.Array  # (N, 2)
+    rotation: jax.Array  # (N,) total rotation angle (counter-clockwise)
+    velocity: jax.Array  # (N, 6) generalised velocity; rigid: [vx, vy, omega, 0, 0, 0]
+    contact_key: jax.Array  # (C,) int64 keys of last step's contacts (-1 = empty)
+    contact_force: jax.Array  # (C, 2) last step's (normal, shear) forces for warm start
+
+
+@pytree_dataclass
+class Contacts:
+    """Contacts found by the narrow phase: a point feature of body ``a`` against body ``b``.
+
+    Side a is a point with a radius: a disk centre (radius R) or a polygon vertex (0).
+    Side b is a point with a radius (B_POINT: outside it), the hole of a ring (B_HOLE:
+    inside it), or an edge line (B_LINE, from qb to eb, outward normal on the right).
+    Coordinates are local to each body (relative to the centroid, rotation 0).
+    """
+
+    valid: jax.Array  # (C,) bool
+    a: jax.Array  # (C,) int32
+    b: jax.Array  # (C,) int32
+    ra: jax.Array  # (C,)
+    pa: jax.Array  # (C, 2)
+    btype: jax.Array  # (C,) int32
+    rb: jax.Array  # (C,)
+    qb: jax.Array  # (C, 2)
+    eb: jax.Array  # (C, 2)
+    key: jax.Array  # (C,) int64 identity of the feature pair, for warm start
+
+
+@pytree_dataclass
+class ContactReport:
+    """Per-step contact output. ``force`` is the resultant on body ``a`` from body ``b``
+    (global frame), averaged over the step: impact impulse / dt plus the contact force."""
+
+    valid: jax.Array  # (C,) bool
+    a: jax.Array  # (C,) int32
+    b: jax.Array  # (C,) int32
+    point: jax.Array  # (C, 2)
+    normal: jax.Array  # (C, 2) unit normal, from b towards a
+    normal_force: jax.Array  # (C,)
+    shear_force: jax.Array  # (C,) along tau = normal rotated clockwise
+    force: jax.Array  # (C, 2)
+    gap: jax.Array  # (C,) gap at the start of the step
+
+
+@pytree_dataclass
+class StepInfo:
+    """Diagnostics of one step."""
+
+    iterations: jax.Array  # () int32 projection-contraction iterations (impact + contact)
+    residual: jax.Array  # () largest relative VI residual of the two solves
+    converged: jax.Array  # () bool
+    needed: jax.Array  # (5,) int32 slots needed per buffer, in the order of Capacities
+    overflow: jax.Array  # () bool: some buffer was too small (results incomplete)
+    n_contacts: jax.Array  # () int32
+    max_penetration: jax.Array  # () largest overlap at the start of the step (>= 0)
+    contacts: ContactReport
+
+
+def zeros_contact_memory(capacity: int) -> tuple[jax.Array, jax.Array]:
+    return -jnp.ones((capacity,), jnp.int64), jnp.zeros((capacity, 2))
