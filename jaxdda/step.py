@@ -76,8 +76,13 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     t_hit, hits = impact_time(gap0, v_rel[:, 0], a_rel[:, 0], dt)
     t_hit = jnp.where(hits, t_hit, 0.0)
     v_hit = v_rel + a_rel * t_hit[:, None]
-    impacting = c.valid & hits & (v_hit[:, 0] < 0)
-    b_imp = jnp.stack([(1.0 + restitution) * v_hit[:, 0], v_hit[:, 1]], -1)
+    # A contact that carried force last step is sustained, not struck: it takes part (so
+    # impulses pass through a resting stack) but does not bounce (restitution 0).
+    p0 = _warm_start(state.contact_key, state.contact_force, c.key, c.valid)
+    sustained = p0[:, 0] > 0
+    impacting = c.valid & hits & ((v_hit[:, 0] < 0) | sustained)
+    bounce = jnp.where(sustained, 0.0, restitution)
+    b_imp = jnp.stack([(1.0 + bounce) * v_hit[:, 0], v_hit[:, 1]], -1)
     apply_m, diag_m = _flexibility(jac, c, m_inv, n)
     imp = pc.solve(apply_m, diag_m, b_imp, mu, impacting, jnp.zeros_like(b_imp), params.tol, params.max_iter,
                    momentum)
@@ -88,13 +93,18 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     d_free = free_displacement(k_inv, mass, load, v_star, dt)
     d_pred = d_free + shift
     gap_pred = gap0 + gap_change(c, state.centroid, state.rotation, d_pred[:, :2], d_pred[:, 2])
-    b_con = jnp.stack([gap_pred, apply_jacobian(jac, c, d_pred)[:, 1]], -1)
-    apply_k, diag_k = _flexibility(jac, c, k_inv, n)
-    p0 = _warm_start(state.contact_key, state.contact_force, c.key, c.valid)
+    # The force acts along the normal of the mid-step configuration: normal to the chord
+    # of the motion, so a frictionless sustained contact does no work (energy is kept on
+    # curved tracks; with the start normal it would do work p n.d every step).
+    mid_centroid, mid_rotation = state.centroid + 0.5 * d_pred[:, :2], state.rotation + 0.5 * d_pred[:, 2]
+    _, normal_mid, point_mid = gap_frame(c, mid_centroid, mid_rotation)
+    jac_mid = jacobians(c, normal_mid, point_mid, mid_centroid)
+    b_con = jnp.stack([gap_pred, apply_jacobian(jac_mid, c, d_pred)[:, 1]], -1)
+    apply_k, diag_k = _flexibility(jac_mid, c, k_inv, n)
     con = pc.solve(apply_k, diag_k, b_con, mu, c.valid, p0, params.tol, params.max_iter, momentum / dt)
 
     # 3. Integrate: Newmark velocity from d; geometry from d plus the impact shift.
-    d = d_free + matvec(k_inv, apply_jacobian_t(jac, c, con.force, n))
+    d = d_free + matvec(k_inv, apply_jacobian_t(jac_mid, c, con.force, n))
     new_vel = newmark_velocity(d, v_star, dt, proj)
     d_geo = d + shift
     new_state = State(
@@ -106,13 +116,14 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
         contact_force=con.force,
     )
 
-    force_nt = imp.force / dt + con.force
-    force_nt = jnp.where(c.valid[:, None], force_nt, 0.0)
-    tau = clockwise(normal)
+    def to_global(nt, nrm):
+        return nt[:, :1] * nrm + nt[:, 1:] * clockwise(nrm)
+
+    force = jnp.where(c.valid[:, None], to_global(imp.force / dt, normal) + to_global(con.force, normal_mid), 0.0)
     report = ContactReport(
-        valid=c.valid, a=c.a, b=c.b, point=point, normal=normal,
-        normal_force=force_nt[:, 0], shear_force=force_nt[:, 1],
-        force=force_nt[:, :1] * normal + force_nt[:, 1:] * tau, gap=gap0)
+        valid=c.valid, a=c.a, b=c.b, point=point_mid, normal=normal_mid,
+        normal_force=jnp.sum(force * normal_mid, -1), shear_force=jnp.sum(force * clockwise(normal_mid), -1),
+        force=force, gap=gap0)
     capacity = jnp.array(dataclasses.astuple(model.capacity), jnp.int32)
     info = StepInfo(
         iterations=imp.iterations + con.iterations,
