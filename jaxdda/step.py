@@ -61,8 +61,18 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
 
     contacts, needed = detect(model, state.centroid, state.rotation, detection_reach(model, state, params))
     c = contacts
-    gap0, normal, point = gap_frame(c, state.centroid, state.rotation)
-    jac = jacobians(c, normal, point, state.centroid)
+    centroid = state.centroid
+    _, normal, point = gap_frame(c, centroid, state.rotation)
+    jac = jacobians(c, normal, point, centroid)
+    # Gaps as (gap at the origin) + (exact change over the displacement since): a body
+    # at 50 m that moved 1e-13 m keeps its gaps exact, not rounded to ulp(50 m).
+    origin, no_turn = state.origin, jnp.zeros_like(state.rotation)
+    gap_ref = gap_frame(c, origin, no_turn)[0]
+
+    def gap_at(shift, turn):
+        return gap_ref + gap_change(c, origin, no_turn, state.displacement + shift, state.rotation + turn)
+
+    gap0 = gap_at(jnp.zeros_like(centroid), no_turn)
     mat_a, mat_b = model.material[c.a], model.material[c.b]
     mu = params.friction[mat_a, mat_b]
     restitution = params.restitution[mat_a, mat_b]
@@ -71,16 +81,17 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     momentum = jnp.max(jnp.abs(matvec(mass, vel)) + jnp.abs(load) * dt, initial=0.0)
 
     # 1. Impacts: Newton's law at the impact time t*, impulses P (velocity level).
+    # A contact that carried force last step is sustained, not struck: it is closed (its
+    # gap, however small, is not a free fall to an impact), it takes part in the impact
+    # solve (so impulses pass through a resting stack) and it does not bounce.
+    p0 = _warm_start(state.contact_key, state.contact_force, c.key, c.valid)
+    sustained = p0[:, 0] > 0
     accel = 2.0 * (free_displacement(k_inv, mass, load, vel, dt) - vel * dt) / dt ** 2
     v_rel, a_rel = apply_jacobian(jac, c, vel), apply_jacobian(jac, c, accel)
     t_hit, hits = impact_time(gap0, v_rel[:, 0], a_rel[:, 0], dt)
-    t_hit = jnp.where(hits, t_hit, 0.0)
+    t_hit = jnp.where(hits & ~sustained, t_hit, 0.0)
     v_hit = v_rel + a_rel * t_hit[:, None]
-    # A contact that carried force last step is sustained, not struck: it takes part (so
-    # impulses pass through a resting stack) but does not bounce (restitution 0).
-    p0 = _warm_start(state.contact_key, state.contact_force, c.key, c.valid)
-    sustained = p0[:, 0] > 0
-    impacting = c.valid & hits & ((v_hit[:, 0] < 0) | sustained)
+    impacting = c.valid & ((hits & (v_hit[:, 0] < 0)) | sustained)
     bounce = jnp.where(sustained, 0.0, restitution)
     b_imp = jnp.stack([(1.0 + bounce) * v_hit[:, 0], v_hit[:, 1]], -1)
     apply_m, diag_m = _flexibility(jac, c, m_inv, n)
@@ -92,11 +103,11 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     # 2. Contact forces over the step (eq. 39); gap evaluated exactly at the predictor.
     d_free = free_displacement(k_inv, mass, load, v_star, dt)
     d_pred = d_free + shift
-    gap_pred = gap0 + gap_change(c, state.centroid, state.rotation, d_pred[:, :2], d_pred[:, 2])
+    gap_pred = gap_at(d_pred[:, :2], d_pred[:, 2])
     # The force acts along the normal of the mid-step configuration: normal to the chord
     # of the motion, so a frictionless sustained contact does no work (energy is kept on
     # curved tracks; with the start normal it would do work p n.d every step).
-    mid_centroid, mid_rotation = state.centroid + 0.5 * d_pred[:, :2], state.rotation + 0.5 * d_pred[:, 2]
+    mid_centroid, mid_rotation = centroid + 0.5 * d_pred[:, :2], state.rotation + 0.5 * d_pred[:, 2]
     _, normal_mid, point_mid = gap_frame(c, mid_centroid, mid_rotation)
     jac_mid = jacobians(c, normal_mid, point_mid, mid_centroid)
     b_con = jnp.stack([gap_pred, apply_jacobian(jac_mid, c, d_pred)[:, 1]], -1)
@@ -109,7 +120,8 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     d_geo = d + shift
     new_state = State(
         time=state.time + dt,
-        centroid=state.centroid + d_geo[:, :2],
+        origin=origin,
+        displacement=state.displacement + d_geo[:, :2],
         rotation=state.rotation + d_geo[:, 2],
         velocity=new_vel,
         contact_key=c.key,

@@ -83,12 +83,20 @@ class Params:
 class State:
     """What evolves: time, pose and velocity per body, and contact memory (warm start)."""
 
+
     time: jax.Array  # ()
-    centroid: jax.Array  # (N, 2)
-    rotation: jax.Array  # (N,) total rotation angle (counter-clockwise)
+    origin: jax.Array  # (N, 2) centroid at the start (a fixed reference)
+    displacement: jax.Array  # (N, 2) centroid displacement since the start
+    rotation: jax.Array  # (N,) total rotation angle since the start (counter-clockwise)
     velocity: jax.Array  # (N, 6) generalised velocity; rigid: [vx, vy, omega, 0, 0, 0]
     contact_key: jax.Array  # (C,) int64 keys of last step's contacts (-1 = empty)
     contact_force: jax.Array  # (C, 2) last step's (normal, shear) forces for warm start
+
+    @property
+    def centroid(self) -> jax.Array:
+        """(N, 2) current centroids. Kept as origin + displacement so that gaps can be
+        computed from the small displacement at full precision (see kinematics.gap_change)."""
+        return self.origin + self.displacement
 
 
 @pytree_dataclass

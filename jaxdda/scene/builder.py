@@ -180,7 +180,8 @@ class SceneBuilder:
             dof_projector=jnp.asarray(np.where(fixed[:, None, None], 0.0, RIGID_PROJECTOR)),
             capacity=capacity, n_bodies=n, max_vertices=v_max)
         key, force = zeros_contact_memory(capacity.contacts)
-        state = State(time=jnp.asarray(0.0), centroid=jnp.asarray(centers), rotation=jnp.zeros(n),
+        state = State(time=jnp.asarray(0.0), origin=jnp.asarray(centers), displacement=jnp.zeros((n, 2)),
+                      rotation=jnp.zeros(n),
                       velocity=jnp.asarray(velocity), contact_key=key, contact_force=force)
         params = Params(dt=jnp.asarray(float(self.dt)), gravity=jnp.asarray(g),
                         density=jnp.asarray([b.density for b in self._bodies]), friction=jnp.asarray(friction),

@@ -1,0 +1,139 @@
+"""Command line: ``jaxdda run NAME_OR_FILE [--steps N] [--out run.npz] [--plot run.png]``
+and ``jaxdda list``."""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from jaxdda import examples
+from jaxdda.errors import CapacityError, SceneError
+
+
+class _UsageError(Exception):
+    """A mistake on the command line or in the input: message, exit status 2."""
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return value
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="jaxdda", description="Differentiable 2D DDA contact simulations.")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    run = sub.add_parser("run", help="simulate an example or a JSON scene file",
+                         description="Simulate a built-in example (see 'jaxdda list') or a JSON scene "
+                                     "file (docs/scene-format.md) and summarise the run.")
+    run.add_argument("scene", metavar="NAME_OR_FILE", help="example name or path to a .json scene file")
+    run.add_argument("--steps", type=_positive_int,
+                     help="number of steps (default: the file's \"steps\", or the example's default)")
+    run.add_argument("--out", metavar="FILE.npz", help="save the trajectory and step diagnostics (numpy .npz)")
+    run.add_argument("--plot", metavar="FILE.png", help="save a picture of the run (needs matplotlib)")
+    run.add_argument("--chunk", type=_positive_int, default=2000,
+                     help="steps per compiled chunk (default: 2000)")
+    sub.add_parser("list", help="list the built-in examples")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``jaxdda`` command; returns the exit status."""
+    parser = _parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exit_:  # argparse's usage errors (2) and --help (0)
+        return exit_.code if isinstance(exit_.code, int) else (0 if exit_.code is None else 2)
+    try:
+        if args.command == "list":
+            return _list()
+        if args.command == "run":
+            return _run(args)
+        parser.print_help(sys.stderr)
+        return 2
+    except (_UsageError, SceneError) as err:
+        print(f"jaxdda: error: {err}", file=sys.stderr)
+        return 2
+    except CapacityError as err:
+        print(f"jaxdda: simulation failed: {err}", file=sys.stderr)
+        return 1
+
+
+def _list() -> int:
+    for name in examples.names():
+        print(f"{name:<12} {examples.default_steps(name):>6} steps  {examples.describe(name)}")
+    return 0
+
+
+def _load(spec: str):
+    """(scene, default steps) of an example name or a scene file."""
+    if spec in examples.names():
+        return examples.get(spec), examples.default_steps(spec)
+    path = Path(spec)
+    if path.suffix.lower() == ".json" or path.exists():
+        from jaxdda.scene.loader import load_scene
+
+        return load_scene(path)
+    raise _UsageError(f"unknown example {spec!r} and no such file (examples: {', '.join(examples.names())}; "
+                      "or give the path to a .json scene file)")
+
+
+def _check_writable(option: str, target: str | None) -> None:
+    if target is not None and not Path(target).resolve().parent.is_dir():
+        raise _UsageError(f"{option} {target}: the directory {Path(target).parent} does not exist")
+
+
+def _run(args) -> int:
+    _check_writable("--out", args.out)
+    _check_writable("--plot", args.plot)
+    if args.plot:
+        from jaxdda.viz.plot import _import_matplotlib
+
+        try:
+            _import_matplotlib()  # fail before a long run, not after it
+        except ImportError as err:
+            raise _UsageError(str(err)) from None
+    scene, default = _load(args.scene)
+    steps = args.steps or default
+    if steps is None:
+        raise _UsageError(f"{args.scene}: give --steps (the scene file has no \"steps\")")
+
+    from jaxdda.simulate import simulate
+
+    start = time.perf_counter()
+    traj = simulate(scene, steps, chunk=args.chunk)
+    wall = time.perf_counter() - start
+    info = traj.info
+    converged = np.asarray(info.converged, bool)
+    print(f"{scene.name}: {scene.n_bodies} bodies, {steps} steps of dt = {float(scene.params.dt):g} s")
+    print(f"  simulated time    {float(traj.time[-1]):.6g} s")
+    print(f"  wall time         {wall:.2f} s (including compilation)")
+    print(f"  PC iterations     max {int(np.max(info.iterations))} per step")
+    if converged.all():
+        print("  converged         every step")
+    else:
+        print(f"  converged         NO: {int((~converged).sum())} steps did not converge "
+              f"(first: step {int(np.argmin(converged)) + 1})")
+    print(f"  contacts          max {int(np.max(info.n_contacts))}")
+    print(f"  penetration       max {float(np.max(info.max_penetration)):.3g}")
+    if args.out:
+        c = info.contacts
+        np.savez_compressed(
+            args.out, time=traj.time, centroid=traj.centroid, rotation=traj.rotation, velocity=traj.velocity,
+            iterations=info.iterations, residual=info.residual, converged=info.converged,
+            n_contacts=info.n_contacts, max_penetration=info.max_penetration, contact_a=c.a, contact_b=c.b,
+            contact_valid=c.valid, contact_force=c.force, contact_point=c.point)
+        print(f"  wrote {args.out}")
+    if args.plot:
+        from jaxdda.viz.plot import plot_trajectory
+
+        plot_trajectory(traj, args.plot)
+        print(f"  wrote {args.plot}")
+    return 0

@@ -1,0 +1,157 @@
+"""Scenes from JSON files: ``load_scene(path)`` and ``scene_from_dict(data)``.
+
+The format is described in docs/scene-format.md. The loader only checks the structure
+(known keys, required fields, JSON types the builder cannot check); every value goes
+to SceneBuilder, which validates it. Every error is a SceneError that names its source
+and where in it the problem is, e.g. ``run.json: body 3 (disk): unknown field 'radious'``.
+"""
+from __future__ import annotations
+
+import difflib
+import json
+from pathlib import Path
+from typing import Any
+
+from jaxdda.errors import SceneError
+from jaxdda.scene.builder import Scene, SceneBuilder
+
+TOP_KEYS = ("name", "dt", "gravity", "steps", "solver", "materials", "interfaces", "bodies")
+SOLVER_KEYS = ("tol", "max_iter", "margin")
+MATERIAL_KEYS = ("friction", "restitution")
+INTERFACE_KEYS = ("materials", "friction", "restitution")
+
+# type -> (SceneBuilder method, required fields); every type also takes BODY_OPTIONAL.
+BODY_TYPES = {
+    "disk": ("add_disk", ("center", "radius", "density")),
+    "ring": ("add_ring", ("center", "inner_radius", "outer_radius", "density")),
+    "polygon": ("add_polygon", ("vertices", "density")),
+}
+BODY_OPTIONAL = ("velocity", "angular_velocity", "fixed", "material", "gravity")
+BOOLEAN_FIELDS = ("fixed", "gravity")  # bool("false") is True: insist on JSON true/false
+
+
+def load_scene(path) -> tuple[Scene, int | None]:
+    """Read a JSON scene file: the scene, and the file's "steps" (None if absent).
+    The scene's name defaults to the file name without its extension."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise SceneError(f"{path}: no such scene file") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise SceneError(f"{path}: cannot read the scene file ({getattr(err, 'strerror', None) or err})") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as err:
+        raise SceneError(f"{path}: invalid JSON at line {err.lineno}, column {err.colno}: {err.msg}") from None
+    if isinstance(data, dict) and "name" not in data:
+        data = {**data, "name": path.stem}
+    return scene_from_dict(data, source=str(path))
+
+
+def scene_from_dict(data: Any, source: str = "scene file") -> tuple[Scene, int | None]:
+    """Build the scene described by ``data`` (the parsed JSON): the scene and its "steps"."""
+    try:
+        return _build(data)
+    except SceneError as err:
+        raise SceneError(f"{source}: {err}") from None
+
+
+# ------------------------------------------------------------------------------- internals
+def _build(data: Any) -> tuple[Scene, int | None]:
+    _expect(data, dict, "the scene", "an object")
+    _check_keys("", data, TOP_KEYS, ("dt",), what="key")
+    solver = data.get("solver", {})
+    _expect(solver, dict, "field 'solver'", "an object")
+    _check_keys("solver", solver, SOLVER_KEYS)
+    _check_numbers("solver", solver, allow_null=("margin",))
+    name = data.get("name", "scene")
+    _expect(name, str, "field 'name'", "a string")
+    steps = data.get("steps")
+    if steps is not None and (not isinstance(steps, int) or isinstance(steps, bool) or steps < 1):
+        raise SceneError(f"field 'steps' must be a positive integer, got {steps!r}")
+
+    sb = SceneBuilder(data["dt"], data.get("gravity", (0.0, -9.81)), name=name, **solver)
+
+    materials = data.get("materials", {})
+    _expect(materials, dict, "field 'materials'", "an object (name -> {friction, restitution})")
+    for mat, law in materials.items():
+        where = f"material '{mat}'"
+        _expect(law, dict, where, "an object")
+        _check_keys(where, law, MATERIAL_KEYS)
+        _check_numbers(where, law)
+        _call(where, sb.add_material, mat, **law)
+
+    interfaces = data.get("interfaces", [])
+    _expect(interfaces, list, "field 'interfaces'", "a list")
+    for k, law in enumerate(interfaces):
+        where = f"interface {k}"
+        _expect(law, dict, where, "an object")
+        _check_keys(where, law, INTERFACE_KEYS, ("materials",))
+        _check_numbers(where, {key: v for key, v in law.items() if key != "materials"})
+        pair = law["materials"]
+        if not (isinstance(pair, list) and len(pair) == 2 and all(isinstance(m, str) for m in pair)):
+            raise SceneError(f"{where}: field 'materials' must be a list of two material names, got {pair!r}")
+        _call(where, sb.set_interface, *pair, **{key: v for key, v in law.items() if key != "materials"})
+
+    bodies = data.get("bodies", [])
+    _expect(bodies, list, "field 'bodies'", "a list")
+    for i, body in enumerate(bodies):
+        _add_body(sb, i, body)
+    return _call("scene", sb.build), steps
+
+
+def _add_body(sb: SceneBuilder, i: int, body: Any) -> None:
+    _expect(body, dict, f"body {i}", "an object")
+    kind = body.get("type")
+    if kind is None:
+        raise SceneError(f"body {i}: missing field 'type' (one of: {', '.join(BODY_TYPES)})")
+    if not isinstance(kind, str) or kind not in BODY_TYPES:
+        raise SceneError(f"body {i}: unknown type {kind!r} (known: {', '.join(BODY_TYPES)})")
+    method, required = BODY_TYPES[kind]
+    where = f"body {i} ({kind})"
+    _check_keys(where, body, ("type",) + required + BODY_OPTIONAL, required)
+    for field in BOOLEAN_FIELDS:
+        if field in body:
+            _expect(body[field], bool, f"{where}: field '{field}'", "true or false")
+    if "material" in body:
+        _expect(body["material"], str, f"{where}: field 'material'", "a material name")
+    _call(where, getattr(sb, method), **{k: v for k, v in body.items() if k != "type"})
+
+
+def _check_keys(where: str, obj: dict, known, required=(), what: str = "field") -> None:
+    prefix = f"{where}: " if where else ""
+    for key in obj:
+        if key not in known:
+            close = difflib.get_close_matches(str(key), known, n=1)
+            hint = f"did you mean '{close[0]}'? " if close else ""
+            raise SceneError(f"{prefix}unknown {what} {key!r} ({hint}known: {', '.join(known)})")
+    for key in required:
+        if key not in obj:
+            raise SceneError(f"{prefix}missing {what} '{key}'")
+
+
+def _check_numbers(where: str, obj: dict, allow_null=()) -> None:
+    """Scalar settings must be JSON numbers (the builder would accept "0.5" or true)."""
+    for key, value in obj.items():
+        if value is None and key in allow_null:
+            continue
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            kind = "a number or null" if key in allow_null else "a number"
+            raise SceneError(f"{where}: field '{key}' must be {kind}, got {json.dumps(value, default=repr)[:60]}")
+
+
+def _expect(value, kind: type, where: str, description: str) -> None:
+    if not isinstance(value, kind):
+        raise SceneError(f"{where} must be {description}, got {json.dumps(value, default=repr)[:60]}")
+
+
+def _call(where: str, fn, *args, **kwargs):
+    """Call a builder method; a stray TypeError/ValueError from a badly typed value
+    becomes a SceneError naming ``where`` (the builder's own SceneErrors pass through)."""
+    try:
+        return fn(*args, **kwargs)
+    except SceneError:
+        raise
+    except (TypeError, ValueError) as err:
+        raise SceneError(f"{where}: invalid value ({err})") from None

@@ -1,0 +1,106 @@
+"""``plot_trajectory``: the final state, the initial outlines and the centroid paths of a run.
+
+matplotlib is imported inside the function, so ``import jaxdda.viz`` works without it.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from jaxdda.types import DISK, POLYGON, RING
+
+FIXED_COLOR = "0.55"
+
+
+def _import_matplotlib():
+    try:
+        import matplotlib  # noqa: F401
+        from matplotlib import collections, figure, patches
+    except ImportError as err:
+        raise ImportError('plotting needs matplotlib: pip install "jaxdda[plot]"') from err
+    return figure, patches, collections
+
+
+def plot_trajectory(traj, path=None, *, ax=None, title=None):
+    """Draw a Trajectory: every body at the final state (filled, semi-transparent; fixed
+    bodies grey), at the initial state as thin dashed outlines, and the path of each
+    free body's centroid. Disks and rings show a radius line that turns with them.
+
+    ``ax``: draw into these axes (default: a new figure). ``path``: also save a PNG there
+    (a new figure is then made on the Agg canvas, so no display is needed).
+    Returns the matplotlib Figure.
+    """
+    figure, patches, collections = _import_matplotlib()
+    if ax is None:
+        if path is not None:
+            from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+            fig = figure.Figure(figsize=(7, 7))
+            FigureCanvasAgg(fig)
+            ax = fig.add_subplot()
+        else:
+            import matplotlib.pyplot as plt
+
+            fig, ax = plt.subplots(figsize=(7, 7))
+    else:
+        fig = ax.figure
+
+    model = traj.scene.model
+    kind = np.asarray(model.kind)
+    fixed = np.asarray(model.fixed, bool)
+    radius = np.asarray(model.radius, float)
+    inner = np.asarray(model.inner_radius, float)
+    local = np.asarray(model.local_vertices, float)
+    mask = np.asarray(model.vertex_mask, bool)
+    centroid = np.asarray(traj.centroid, float)
+    rotation = np.asarray(traj.rotation, float)
+    cycle = [f"C{k}" for k in range(10)]
+    colors = [FIXED_COLOR if fixed[i] else cycle[i % len(cycle)] for i in range(len(kind))]
+
+    def shapes(frame: int):
+        """(patches, radius lines) of every body at ``frame``."""
+        out, marks = [], []
+        for i, k in enumerate(kind):
+            c, th = centroid[frame, i], rotation[frame, i]
+            direction = np.array([np.cos(th), np.sin(th)])
+            if k == DISK:
+                out.append(patches.Circle(c, radius[i]))
+                marks.append([c, c + radius[i] * direction])
+            elif k == RING:
+                out.append(patches.Wedge(c, radius[i], 0.0, 360.0, width=radius[i] - inner[i]))
+                marks.append([c + inner[i] * direction, c + radius[i] * direction])
+            else:
+                cs, sn = np.cos(th), np.sin(th)
+                rot = np.array([[cs, -sn], [sn, cs]])
+                out.append(patches.Polygon(c + local[i][mask[i]] @ rot.T, closed=True))
+        return out, marks
+
+    first, first_marks = shapes(0)
+    ax.add_collection(collections.PatchCollection(
+        first, facecolors="none", edgecolors=colors, linewidths=0.8, linestyles="--", alpha=0.7))
+    last, last_marks = shapes(-1)
+    ax.add_collection(collections.PatchCollection(
+        last, facecolors=colors, edgecolors=colors, linewidths=1.2, alpha=0.45))
+    round_colors = [colors[i] for i, k in enumerate(kind) if k != POLYGON]
+    if last_marks:
+        ax.add_collection(collections.LineCollection(first_marks, colors=round_colors, linewidths=0.8,
+                                                     linestyles="--", alpha=0.7))
+        ax.add_collection(collections.LineCollection(last_marks, colors=round_colors, linewidths=1.5))
+
+    free = np.flatnonzero(~fixed)
+    if len(centroid) > 1 and len(free):
+        ax.add_collection(collections.LineCollection(
+            [centroid[:, i] for i in free], colors=[colors[i] for i in free], linewidths=1.0))
+    ax.plot(centroid[-1, free, 0], centroid[-1, free, 1], "k.", markersize=3)
+
+    ax.set_aspect("equal")
+    ax.autoscale_view()
+    ax.margins(0.05)
+    if title is None:
+        steps = len(traj.time) - 1
+        title = f"{traj.scene.name}: t = {float(traj.time[-1]):.4g} s ({steps} steps)"
+    ax.set_title(title)
+    ax.set_xlabel("x")
+    ax.set_ylabel("y")
+    if path is not None:
+        fig.savefig(path, dpi=120, bbox_inches="tight")
+    return fig

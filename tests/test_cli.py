@@ -1,0 +1,95 @@
+"""The jaxdda command, run in-process: examples, scene files, outputs and errors."""
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from jaxdda.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+
+MIXED = {
+    "name": "mixed", "dt": 0.001, "steps": 3,
+    "materials": {"rock": {"friction": 0.5, "restitution": 0.2}},
+    "bodies": [
+        {"type": "polygon", "vertices": [[-10, -1], [10, -1], [10, 0], [-10, 0]], "density": 2000,
+         "fixed": True, "material": "rock"},
+        {"type": "disk", "center": [-4, 1.0], "radius": 1.0, "density": 1000, "material": "rock"},
+        {"type": "ring", "center": [0, 2], "inner_radius": 0.5, "outer_radius": 1.5, "density": 1500,
+         "velocity": [0.5, 0.0]},
+        {"type": "polygon", "vertices": [[3, 0.5], [5, 0.5], [4, 2]], "density": 2500, "angular_velocity": 1.0},
+    ],
+}
+
+
+def test_run_example_writes_npz_and_png(tmp_path, capsys):
+    out, png = tmp_path / "x.npz", tmp_path / "x.png"
+    assert main(["run", "paper-7.1", "--steps", "5", "--out", str(out), "--plot", str(png)]) == 0
+    text = capsys.readouterr().out
+    assert "paper-7.1" in text and "5 steps" in text and "converged" in text
+    assert png.stat().st_size > 1000
+    data = np.load(out)
+    n, steps = 4, 5
+    assert data["time"].shape == (steps + 1,)
+    np.testing.assert_allclose(data["time"][-1], 5 * 0.001)
+    assert data["centroid"].shape == (steps + 1, n, 2)
+    assert data["rotation"].shape == (steps + 1, n)
+    assert data["velocity"].shape == (steps + 1, n, 3)
+    for key in ("iterations", "residual", "converged", "n_contacts"):
+        assert data[key].shape == (steps,), key
+    c = data["contact_valid"].shape[1]
+    assert data["contact_valid"].shape == data["contact_a"].shape == data["contact_b"].shape == (steps, c)
+    assert data["contact_force"].shape == data["contact_point"].shape == (steps, c, 2)
+    assert data["converged"].dtype == bool and data["converged"].all()
+    assert (data["contact_valid"].sum(1) == data["n_contacts"]).all()
+
+
+def test_run_scene_file(tmp_path, capsys):
+    scene = tmp_path / "mixed.json"
+    scene.write_text(json.dumps(MIXED))
+    out, png = tmp_path / "m.npz", tmp_path / "m.png"
+    assert main(["run", str(scene), "--out", str(out), "--plot", str(png)]) == 0  # steps from the file
+    assert "mixed: 4 bodies, 3 steps" in capsys.readouterr().out
+    data = np.load(out)
+    assert data["centroid"].shape == (4, 4, 2)
+    assert png.exists()
+
+
+def fails(argv, capsys) -> str:
+    assert main(argv) == 2
+    captured = capsys.readouterr()
+    assert "Traceback" not in captured.err
+    return captured.err
+
+
+def test_errors_exit_2_with_a_message(tmp_path, capsys):
+    assert "jaxdda: error: unknown example 'paper-9.9'" in fails(["run", "paper-9.9"], capsys)
+    assert "no such scene file" in fails(["run", str(tmp_path / "absent.json")], capsys)
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({**MIXED, "bodies": [{"type": "disk", "center": [0, 0], "radius": 1}]}))
+    assert "body 0 (disk): missing field 'density'" in fails(["run", str(bad)], capsys)
+    bad.write_text("{")
+    assert "invalid JSON at line 1" in fails(["run", str(bad)], capsys)
+    no_steps = tmp_path / "no_steps.json"
+    no_steps.write_text(json.dumps({k: v for k, v in MIXED.items() if k != "steps"}))
+    assert "--steps" in fails(["run", str(no_steps)], capsys)
+    assert "does not exist" in fails(["run", "paper-7.1", "--out", str(tmp_path / "nodir" / "x.npz")], capsys)
+    assert "positive integer" in fails(["run", "paper-7.1", "--steps", "0"], capsys)
+    fails([], capsys)
+
+
+def test_list(capsys):
+    assert main(["list"]) == 0
+    text = capsys.readouterr().out
+    assert "paper-7.1" in text and "paper-7.5" in text and "pendulum" in text
+
+
+def test_python_dash_m():
+    result = subprocess.run([sys.executable, "-m", "jaxdda", "run", "no-such-example"], cwd=ROOT,
+                            capture_output=True, text=True, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert result.returncode == 2
+    assert result.stderr.startswith("jaxdda: error: unknown example")
