@@ -18,17 +18,18 @@ MAX_REGROW = 8
 
 @dataclasses.dataclass
 class Trajectory:
-    """A simulated run, as numpy arrays. Index 0 is the initial state; step k ends at k.
+    """A simulated run of S steps, as numpy arrays. Index 0 is the initial state; step k
+    ends at index k.
 
-    ``info`` holds one StepInfo entry per step (arrays of length N); ``info.contacts``
-    the per-step contact report, padded to the largest contact capacity of the run.
+    ``info`` holds one StepInfo entry per step (leading axis S); ``info.contacts`` the
+    per-step contact report, padded to the largest contact capacity of the run.
     """
 
     scene: Scene
-    time: np.ndarray  # (N+1,)
-    centroid: np.ndarray  # (N+1, bodies, 2)
-    rotation: np.ndarray  # (N+1, bodies)
-    velocity: np.ndarray  # (N+1, bodies, 3): vx, vy, omega
+    time: np.ndarray  # (S+1,)
+    centroid: np.ndarray  # (S+1, bodies, 2)
+    rotation: np.ndarray  # (S+1, bodies)
+    velocity: np.ndarray  # (S+1, bodies, 3): vx, vy, omega
     info: StepInfo
     final_state: State
 
@@ -37,7 +38,7 @@ class Trajectory:
         return len(self.time) - 1
 
     def force_between(self, i: int, j: int) -> np.ndarray:
-        """(N, 2): the resultant contact force that body i exerts on body j in each step
+        """(S, 2): the resultant contact force that body i exerts on body j in each step
         (global frame, step average: impact impulses count as impulse / dt)."""
         c = self.info.contacts
         on_a = np.where(c.valid[..., None], c.force, 0.0)  # force on a from b
@@ -46,11 +47,15 @@ class Trajectory:
 
 
 def _run_chunk(model: Model, state: State, params: Params, n_valid, length: int):
-    """Scan ``length`` steps; steps at index >= n_valid leave the state unchanged."""
+    """Scan ``length`` steps; steps at index >= n_valid are skipped (state unchanged,
+    zero info), so every run of a scene shares one compilation whatever its length."""
+    info_shape = jax.eval_shape(step, model, state, params)[1]
+
+    def skip(s):
+        return s, jax.tree.map(lambda x: jnp.zeros(x.shape, x.dtype), info_shape)
+
     def body(s, k):
-        s2, info = step(model, s, params)
-        keep = k < n_valid
-        s2 = jax.tree.map(lambda new, old: jnp.where(keep, new, old), s2, s)
+        s2, info = jax.lax.cond(k < n_valid, lambda s: step(model, s, params), skip, s)
         return s2, (s2.time, s2.centroid, s2.rotation, s2.velocity[:, :3], info)
 
     return jax.lax.scan(body, state, jnp.arange(length))
@@ -71,19 +76,22 @@ def with_capacity(model: Model, state: State, capacity: Capacities) -> tuple[Mod
     return dataclasses.replace(model, capacity=capacity), dataclasses.replace(state, contact_key=key, contact_force=force)
 
 
-def simulate(scene: Scene, steps: int, *, params: Params | None = None, chunk: int = 2000) -> Trajectory:
-    """Run ``steps`` steps of ``scene`` and return the trajectory.
+def simulate(scene: Scene, steps: int, *, params: Params | None = None, chunk: int = 1000) -> Trajectory:
+    """Run ``steps`` (>= 1) steps of ``scene`` and return the trajectory.
 
-    Runs in chunks of at most ``chunk`` steps (one compilation for any ``steps``). When
+    Runs in jit-compiled chunks of ``chunk`` steps (one compilation per scene and chunk
+    length, whatever ``steps``; the unused tail of the last chunk is skipped). When
     a buffer overflows in a chunk, its capacity is grown from the counts the step
     reported and the chunk is run again from its start, so no contact is ever lost.
     Raises CapacityError if that does not settle within a few regrowths.
     """
-    if int(steps) != steps or steps < 0:
-        raise ValueError(f"steps must be a non-negative integer, got {steps!r}")
+    if isinstance(steps, bool) or int(steps) != steps or steps < 1:
+        raise ValueError(f"steps must be a positive integer, got {steps!r}")
+    if isinstance(chunk, bool) or int(chunk) != chunk or chunk < 1:
+        raise ValueError(f"chunk must be a positive integer, got {chunk!r}")
     params = scene.params if params is None else params
     model, state = scene.model, scene.state
-    length = max(1, min(int(chunk), int(steps)))
+    length = int(chunk)
     pieces, done = [], 0
     while done < steps:
         n_valid = min(length, steps - done)
@@ -118,12 +126,8 @@ def _assemble(scene: Scene, pieces, final_state: State) -> Trajectory:
     s0 = scene.state
     first = (np.asarray(s0.time)[None], np.asarray(s0.centroid)[None], np.asarray(s0.rotation)[None],
              np.asarray(s0.velocity)[None, :, :3])
-    if pieces:
-        width = max(p[4].contacts.valid.shape[1] for p in pieces)
-        pieces = [p[:4] + (dataclasses.replace(p[4], contacts=_pad_contacts(p[4].contacts, width)),) for p in pieces]
-        cols = [np.concatenate([f] + [p[k] for p in pieces]) for k, f in enumerate(first)]
-        info = jax.tree.map(lambda *xs: np.concatenate(xs), *[p[4] for p in pieces])
-    else:
-        cols = list(first)
-        info = None
+    width = max(p[4].contacts.valid.shape[1] for p in pieces)
+    pieces = [p[:4] + (dataclasses.replace(p[4], contacts=_pad_contacts(p[4].contacts, width)),) for p in pieces]
+    cols = [np.concatenate([f] + [p[k] for p in pieces]) for k, f in enumerate(first)]
+    info = jax.tree.map(lambda *xs: np.concatenate(xs), *[p[4] for p in pieces])
     return Trajectory(scene, cols[0], cols[1], cols[2], cols[3], info, final_state)

@@ -62,8 +62,8 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     contacts, needed = detect(model, state.centroid, state.rotation, detection_reach(model, state, params))
     c = contacts
     centroid = state.centroid
-    _, normal, point = gap_frame(c, centroid, state.rotation)
-    jac = jacobians(c, normal, point, centroid)
+    gap_abs, normal, point = gap_frame(c, centroid, state.rotation)
+    jac = jacobians(c, normal, point, gap_abs, centroid)
     # Gaps as (gap at the origin) + (exact change over the displacement since): a body
     # at 50 m that moved 1e-13 m keeps its gaps exact, not rounded to ulp(50 m).
     origin, no_turn = state.origin, jnp.zeros_like(state.rotation)
@@ -108,8 +108,8 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     # of the motion, so a frictionless sustained contact does no work (energy is kept on
     # curved tracks; with the start normal it would do work p n.d every step).
     mid_centroid, mid_rotation = centroid + 0.5 * d_pred[:, :2], state.rotation + 0.5 * d_pred[:, 2]
-    _, normal_mid, point_mid = gap_frame(c, mid_centroid, mid_rotation)
-    jac_mid = jacobians(c, normal_mid, point_mid, mid_centroid)
+    gap_mid, normal_mid, point_mid = gap_frame(c, mid_centroid, mid_rotation)
+    jac_mid = jacobians(c, normal_mid, point_mid, gap_mid, mid_centroid)
     b_con = jnp.stack([gap_pred, apply_jacobian(jac_mid, c, d_pred)[:, 1]], -1)
     apply_k, diag_k = _flexibility(jac_mid, c, k_inv, n)
     con = pc.solve(apply_k, diag_k, b_con, mu, c.valid, p0, params.tol, params.max_iter, momentum / dt)

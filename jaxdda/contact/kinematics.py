@@ -100,15 +100,18 @@ def gap_change(c: Contacts, centroid: jax.Array, rotation: jax.Array, shift: jax
     return jnp.where(c.btype == B_LINE, line_change, jnp.where(c.btype == B_HOLE, -dist_change, dist_change))
 
 
-def jacobians(c: Contacts, normal: jax.Array, point: jax.Array, centroid: jax.Array) -> jax.Array:
-    """Contact Jacobians (C, 2 sides, 2, 6): rows (n, tau) of s * [n, tau]^T T(x_c) (eq. 10).
+def jacobians(c: Contacts, normal: jax.Array, point: jax.Array, gap: jax.Array, centroid: jax.Array) -> jax.Array:
+    """Contact Jacobians (C, 2 sides, 2, 6): rows (n, tau) of s * [n, tau]^T T(x) (eq. 10).
 
     Side a gets +, side b gets -, so that J d is the relative displacement of a against
-    b at the contact point, in the (normal, shear) frame (eqs. 31, 36-38).
+    b at the contact, in the (normal, shear) frame (eqs. 31, 36-38). Each side uses its
+    own surface point (the midpoint -/+ gap/2 along n), so a lever arm is the body's
+    true radius even where the configuration used overlaps (as a predictor does).
     """
     frame = jnp.stack([normal, clockwise(normal)], -2)  # (C, 2, 2) rows n, tau
-    ta = shape_function(point, centroid[c.a])
-    tb = shape_function(point, centroid[c.b])
+    half = (0.5 * gap)[:, None] * normal
+    ta = shape_function(point + half, centroid[c.a])
+    tb = shape_function(point - half, centroid[c.b])
     return jnp.stack([frame @ ta, -(frame @ tb)], 1)
 
 

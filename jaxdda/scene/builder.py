@@ -68,7 +68,12 @@ class SceneBuilder:
 
     # -- materials ---------------------------------------------------------------------
     def add_material(self, name: str, friction: float = 0.0, restitution: float = 1.0) -> str:
-        """Declare (or redefine) a material: Coulomb friction mu >= 0, restitution e in [0, 1]."""
+        """Declare (or redefine) a material: Coulomb friction mu >= 0, restitution e in [0, 1].
+
+        The built-in "default" material is frictionless and perfectly elastic (e = 1).
+        """
+        if not isinstance(name, str) or not name:
+            raise SceneError(f"material {name!r}: a material name must be a non-empty string")
         _check_contact_law(f"material '{name}'", friction, restitution)
         self._materials[name] = {"friction": float(friction), "restitution": float(restitution)}
         return name
@@ -145,8 +150,11 @@ class SceneBuilder:
         shapes = [self._world_shape(b) for b in self._bodies]
         size = _scene_size(shapes)
         validate.check_no_interpenetration(shapes, labels, tol=1e-9 * size)
+        if self.margin is not None:
+            validate.check_finite("scene", "margin", self.margin)
+            if self.margin < 0:
+                raise SceneError(f"scene: field 'margin' must be >= 0, got {self.margin}")
         margin = 1e-6 * size if self.margin is None else float(self.margin)
-        validate.check_finite("scene", "margin", margin)
 
         names = list(self._materials)
         mat_index = {m: k for k, m in enumerate(names)}
@@ -211,7 +219,9 @@ class SceneBuilder:
         body.velocity = self._point(label, "velocity", velocity)
         validate.check_finite(label, "angular_velocity", omega)
         body.omega = float(omega)
-        if body.material not in self._materials:
+        validate.check_flag(label, "fixed", body.fixed)
+        validate.check_flag(label, "gravity", body.gravity)
+        if not isinstance(body.material, str) or body.material not in self._materials:
             raise SceneError(f"{label}: field 'material' names unknown material '{body.material}' "
                              f"(known: {', '.join(self._materials)}); declare it with add_material")
         if body.fixed and (np.any(body.velocity != 0) or body.omega != 0):
@@ -243,6 +253,8 @@ class SceneBuilder:
 def _check_contact_law(label: str, friction: float, restitution: float) -> None:
     for field, value in (("friction", friction), ("restitution", restitution)):
         validate.check_finite(label, field, value)
+        if np.ndim(value) != 0:
+            raise SceneError(f"{label}: field '{field}' must be a number, got {value!r}")
     if friction < 0:
         raise SceneError(f"{label}: field 'friction' must be >= 0, got {friction}")
     if not 0.0 <= restitution <= 1.0:

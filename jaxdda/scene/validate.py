@@ -14,15 +14,25 @@ _REL_TOL = 1e-9  # "on the boundary", relative to the size of the pair
 
 
 def check_finite(body: str, field: str, value) -> None:
-    """Raise SceneError if ``value`` is not numeric or has a NaN or inf entry."""
+    """Raise SceneError if ``value`` is not numeric (strings and booleans are not) or
+    has a NaN or inf entry."""
     try:
+        raw = np.asarray(value)
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
         raise SceneError(f"{body}: field '{field}' is not numeric: {value!r}") from None
+    if raw.dtype.kind not in "iuf":
+        raise SceneError(f"{body}: field '{field}' is not numeric: {value!r}")
     bad = np.argwhere(~np.isfinite(arr))
     if len(bad):
         where = f" entry {tuple(int(k) for k in bad[0])}" if arr.ndim else ""
         raise SceneError(f"{body}: field '{field}'{where} = {arr[tuple(bad[0])]} is not finite (NaN or inf)")
+
+
+def check_flag(body: str, field: str, value) -> None:
+    """Raise SceneError unless ``value`` is a boolean."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise SceneError(f"{body}: field '{field}' must be true or false, got {value!r}")
 
 
 def check_positive(body: str, field: str, value) -> None:
