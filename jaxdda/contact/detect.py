@@ -7,7 +7,7 @@ import jax
 import jax.numpy as jnp
 
 from jaxdda.bodies.shape import to_world
-from jaxdda.contact.broadphase import compact, sweep_and_prune
+from jaxdda.contact.broadphase import compact, grid_pairs
 from jaxdda.contact.kinematics import gap_frame
 from jaxdda.contact.narrowphase import particle_particle, particle_polygon, polygon_polygon
 from jaxdda.types import POLYGON, Contacts, Model
@@ -41,7 +41,7 @@ def detect(model: Model, centroid: jax.Array, rotation: jax.Array, reach: jax.Ar
     n, v_max = model.n_bodies, model.max_vertices
     verts = world_vertices(model, centroid, rotation)
     lo, hi = bounding_boxes(model, centroid, verts, reach)
-    pairs, ok, need_sweep = sweep_and_prune(lo, hi, cap.sweep)
+    pairs, ok, need_sweep = grid_pairs(lo, hi, cap.sweep)
     i, j = pairs[:, 0], pairs[:, 1]
     ok = ok & ~(model.fixed[i] & model.fixed[j])
     poly_i, poly_j = model.kind[i] == POLYGON, model.kind[j] == POLYGON

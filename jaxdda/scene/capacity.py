@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from jaxdda.contact.broadphase import candidate_count
 from jaxdda.types import POLYGON, Capacities
 
 HEADROOM = 2  # room for the scene to rearrange before the driver has to regrow a buffer
@@ -10,7 +11,6 @@ HEADROOM = 2  # room for the scene to rearrange before the driver has to regrow 
 
 def initial_capacities(kind, fixed, centers, local, mask, bound, velocity, dt, gravity, margin) -> Capacities:
     """Count the candidates of the first step (same boxes as the step's broad phase)."""
-    n = len(kind)
     reach = 2 * dt * (np.linalg.norm(velocity[:, :2], axis=1) + np.abs(velocity[:, 2]) * bound)
     reach = np.where(fixed, 0.0, reach + dt ** 2 * np.linalg.norm(gravity)) + 0.5 * margin
     poly = kind == POLYGON
@@ -20,16 +20,8 @@ def initial_capacities(kind, fixed, centers, local, mask, bound, velocity, dt, g
     hi = np.where(poly[:, None], np.max(np.where(mask[..., None], world, -big), 1), centers + bound[:, None])
     lo, hi = lo - reach[:, None], hi + reach[:, None]
 
-    centre = 0.5 * (lo + hi)
-    axis = 1 if np.ptp(centre[:, 1]) > np.ptp(centre[:, 0]) else 0
-    order = np.argsort(lo[:, axis], kind="stable")
-    ends = np.searchsorted(lo[order, axis], hi[order, axis], side="right")
-    count = np.maximum(ends - np.arange(n) - 1, 0)
-    sweep = int(count.sum())
-    k = np.repeat(np.arange(n), count)
-    partner = k + 1 + (np.arange(sweep) - np.repeat(np.cumsum(count) - count, count))
-    i, j = order[k], order[partner]
-    ok = np.all((lo[i] <= hi[j]) & (lo[j] <= hi[i]), axis=1) & ~(fixed[i] & fixed[j])
+    sweep, i, j = candidate_count(lo, hi)
+    ok = ~(fixed[i] & fixed[j])
     n_poly = poly[i].astype(int) + poly[j].astype(int)
     pp, pb, bb = (int(np.sum(ok & (n_poly == m))) for m in (0, 1, 2))
     contacts = pp + 2 * pb + 4 * bb
