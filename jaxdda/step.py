@@ -62,8 +62,8 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     contacts, needed = detect(model, state.centroid, state.rotation, detection_reach(model, state, params))
     c = contacts
     centroid = state.centroid
-    gap_abs, normal, point = gap_frame(c, centroid, state.rotation)
-    jac = jacobians(c, normal, point, gap_abs, centroid)
+    gap_now, normal, point = gap_frame(c, centroid, state.rotation)
+    jac = jacobians(c, normal, point, gap_now, centroid)
     # Gaps as (gap at the origin) + (exact change over the displacement since): a body
     # at 50 m that moved 1e-13 m keeps its gaps exact, not rounded to ulp(50 m).
     origin, no_turn = state.origin, jnp.zeros_like(state.rotation)

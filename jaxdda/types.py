@@ -25,7 +25,7 @@ B_POINT, B_HOLE, B_LINE = 0, 1, 2
 class Capacities:
     """Static sizes of the padded buffers. Each reports overflow; the driver regrows."""
 
-    sweep: int  # broad-phase candidates (bodies in neighbouring grid cells, and large bodies' partners)
+    candidates: int  # broad-phase candidates (bodies in neighbouring grid cells, and large bodies' partners)
     pairs_pp: int  # particle-particle candidate pairs
     pairs_pb: int  # particle-polygon candidate pairs
     pairs_bb: int  # polygon-polygon candidate pairs

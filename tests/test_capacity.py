@@ -20,19 +20,19 @@ def pile():
 
 def test_undersized_buffers_report_overflow():
     scene = pile()
-    tiny = Capacities(sweep=2, pairs_pp=1, pairs_pb=1, pairs_bb=1, contacts=2)
+    tiny = Capacities(candidates=2, pairs_pp=1, pairs_pb=1, pairs_bb=1, contacts=2)
     model, state = with_capacity(scene.model, scene.state, tiny)
     _, info = jax.jit(jaxdda.step)(model, state, scene.params)
     assert bool(info.overflow)
     # the first buffer counts all it needed; later ones count what reached them
-    assert np.asarray(info.needed)[0] > tiny.sweep
+    assert np.asarray(info.needed)[0] > tiny.candidates
 
 
 def test_driver_regrows_and_matches_a_roomy_run():
     scene = pile()
     reference = jaxdda.simulate(scene, 30)
     assert not reference.info.overflow.any()
-    tiny = Capacities(sweep=2, pairs_pp=1, pairs_pb=1, pairs_bb=1, contacts=2)
+    tiny = Capacities(candidates=2, pairs_pp=1, pairs_pb=1, pairs_bb=1, contacts=2)
     model, state = with_capacity(scene.model, scene.state, tiny)
     regrown = jaxdda.simulate(dataclasses.replace(scene, model=model, state=state), 30)
     assert not regrown.info.overflow.any()

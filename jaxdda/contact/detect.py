@@ -34,14 +34,14 @@ def bounding_boxes(model: Model, centroid: jax.Array, verts: jax.Array, reach: j
 def detect(model: Model, centroid: jax.Array, rotation: jax.Array, reach: jax.Array):
     """Contacts whose gap is below the pair's detection distance ``reach[a] + reach[b]``.
 
-    Returns ``(contacts (C,), needed (5,) int32)``: the slots each buffer needed (sweep,
+    Returns ``(contacts (C,), needed (5,) int32)``: the slots each buffer needed (candidates,
     pp, pb, bb pairs, contacts); any ``needed > capacity`` means the result is incomplete.
     """
     cap = model.capacity
     n, v_max = model.n_bodies, model.max_vertices
     verts = world_vertices(model, centroid, rotation)
     lo, hi = bounding_boxes(model, centroid, verts, reach)
-    pairs, ok, need_sweep = grid_pairs(lo, hi, cap.sweep)
+    pairs, ok, need_candidates = grid_pairs(lo, hi, cap.candidates)
     i, j = pairs[:, 0], pairs[:, 1]
     ok = ok & ~(model.fixed[i] & model.fixed[j])
     poly_i, poly_j = model.kind[i] == POLYGON, model.kind[j] == POLYGON
@@ -80,5 +80,5 @@ def detect(model: Model, centroid: jax.Array, rotation: jax.Array, reach: jax.Ar
     idx, valid, need_c = compact(hit, cap.contacts)
     contacts = jax.tree.map(lambda x: x[idx], slots)
     contacts = dataclasses.replace(contacts, valid=valid, key=jnp.where(valid, contacts.key, -1))
-    needed = jnp.stack([need_sweep, need_pp, need_pb, need_bb, need_c]).astype(jnp.int32)
+    needed = jnp.stack([need_candidates, need_pp, need_pb, need_bb, need_c]).astype(jnp.int32)
     return contacts, needed

@@ -11,13 +11,13 @@ G = 10.0
 HEAVY = 1e11
 
 
-def _support(sb: SceneBuilder, heavy: bool, density: float, **kw) -> int:
-    """A fixed body, or the paper's stand-in for one."""
+def _support(sb: SceneBuilder, heavy: bool, density: float, **shape) -> int:
+    """A fixed polygon (``vertices=``) or ring (``center=, inner_radius=, outer_radius=``),
+    or, with ``heavy``, the paper's stand-in for one: free, 1e11 times denser, weightless."""
+    add = sb.add_polygon if "vertices" in shape else sb.add_ring
     if heavy:
-        return sb.add_polygon(density=HEAVY * density, gravity=False, **kw) if "vertices" in kw else \
-            sb.add_ring(density=HEAVY * density, gravity=False, **kw)
-    return sb.add_polygon(density=density, fixed=True, **kw) if "vertices" in kw else \
-        sb.add_ring(density=density, fixed=True, **kw)
+        return add(density=HEAVY * density, gravity=False, **shape)
+    return add(density=density, fixed=True, **shape)
 
 
 def _rect(x0, y0, x1, y1):

@@ -20,11 +20,11 @@ def initial_capacities(kind, fixed, centers, local, mask, bound, velocity, dt, g
     hi = np.where(poly[:, None], np.max(np.where(mask[..., None], world, -big), 1), centers + bound[:, None])
     lo, hi = lo - reach[:, None], hi + reach[:, None]
 
-    sweep, i, j = candidate_count(lo, hi)
+    candidates, i, j = candidate_count(lo, hi)
     ok = ~(fixed[i] & fixed[j])
     n_poly = poly[i].astype(int) + poly[j].astype(int)
     pp, pb, bb = (int(np.sum(ok & (n_poly == m))) for m in (0, 1, 2))
     contacts = pp + 2 * pb + 4 * bb
     grow = lambda x, floor: HEADROOM * x + floor
-    return Capacities(sweep=grow(sweep, 16), pairs_pp=grow(pp, 4), pairs_pb=grow(pb, 4), pairs_bb=grow(bb, 4),
+    return Capacities(candidates=grow(candidates, 16), pairs_pp=grow(pp, 4), pairs_pb=grow(pb, 4), pairs_bb=grow(bb, 4),
                       contacts=grow(contacts, 8))
