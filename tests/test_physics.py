@@ -181,3 +181,18 @@ def test_jit_and_vmap_over_initial_velocities():
         one = jaxdda.simulate(jaxdda.Scene(scene.model, state, scene.params, scene.labels, scene.materials), 40)
         np.testing.assert_allclose(batched[k], one.centroid[-1], atol=1e-12)
     assert not np.allclose(batched[0], batched[2])
+
+
+def test_disk_bounces_inside_a_concave_container():
+    # PB from the inside of a block: a U-shaped (concave) fixed body holds a disk that
+    # bounces between its inner walls and rests on its inner floor.
+    u_shape = [(-3, 0), (3, 0), (3, 3), (2, 3), (2, 1), (-2, 1), (-2, 3), (-3, 3)]
+    sb = jaxdda.SceneBuilder(dt=0.01, gravity=(0.0, -G))
+    sb.add_polygon(vertices=u_shape, density=1.0, fixed=True)
+    sb.add_disk(center=(0.0, 1.5), radius=0.5, density=1.0, velocity=(3.0, 0.0))
+    run = jaxdda.simulate(sb.build(), 300)
+    x = run.centroid[:, 1, 0]
+    assert x.max() <= 1.5 + 1e-9 and x.min() >= -1.5 - 1e-9  # never through the inner walls
+    assert (np.diff(np.sign(run.velocity[:, 1, 0])) != 0).sum() == 3  # walls reached at t = 0.5, 1.5, 2.5 s
+    np.testing.assert_allclose(np.abs(run.velocity[:, 1, 0]), 3.0, atol=1e-9)  # e = 1, no friction
+    np.testing.assert_allclose(run.centroid[:, 1, 1], 1.5, atol=1e-9)  # rests on the inner floor
