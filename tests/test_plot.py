@@ -4,11 +4,10 @@ import sys
 import numpy as np
 import pytest
 
-pytest.importorskip("matplotlib")
-from matplotlib.figure import Figure  # noqa: E402
+from matplotlib.figure import Figure  # matplotlib is part of the "test" extra
 
-from jaxdda import SceneBuilder, Trajectory  # noqa: E402
-from jaxdda.viz import plot_trajectory  # noqa: E402
+from jaxdda import SceneBuilder, Trajectory
+from jaxdda.viz import plot_trajectory
 
 
 def trajectory(frames: int = 4) -> Trajectory:
