@@ -37,16 +37,19 @@ def _flexibility(jac: jax.Array, c: Contacts, inv: jax.Array, n_bodies: int):
     return apply_w, diag
 
 
-def detection_reach(model: Model, state: State, params: Params) -> jax.Array:
-    """Per body distance (N,) that it may travel this step, plus half the margin d0.
+def detection_reach(model: Model, state: State, params: Params) -> tuple[jax.Array, jax.Array]:
+    """Per body: the distance (N,) it may travel this step plus half the margin d0, and
+    the angle (N,) it may turn.
 
-    Twice the velocity term: an impact may reverse a body, and a pair is checked with
+    Twice the velocity terms: an impact may reverse a body, and a pair is checked with
     the sum of its two reaches, so impacts falling anywhere inside the step are found.
     """
-    speed = jnp.linalg.norm(state.velocity[:, :2], axis=-1) + jnp.abs(state.velocity[:, 2]) * model.bound_radius
+    spin = jnp.abs(state.velocity[:, 2])
+    speed = jnp.linalg.norm(state.velocity[:, :2], axis=-1) + spin * model.bound_radius
     accel = jnp.linalg.norm(params.gravity) * model.gravity_scale
     reach = 2.0 * params.dt * speed + params.dt ** 2 * accel + 0.5 * params.margin
-    return jnp.where(model.fixed, 0.5 * params.margin, reach)
+    turn = 2.0 * params.dt * spin
+    return jnp.where(model.fixed, 0.5 * params.margin, reach), jnp.where(model.fixed, 0.0, turn)
 
 
 def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
@@ -59,7 +62,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     load = external_load(model, params)
     vel = matvec(proj, state.velocity)
 
-    contacts, needed = detect(model, state.centroid, state.rotation, detection_reach(model, state, params))
+    contacts, needed = detect(model, state.centroid, state.rotation, *detection_reach(model, state, params))
     c = contacts
     centroid = state.centroid
     gap_now, normal, point = gap_frame(c, centroid, state.rotation)

@@ -31,8 +31,10 @@ def bounding_boxes(model: Model, centroid: jax.Array, verts: jax.Array, reach: j
     return lo, hi
 
 
-def detect(model: Model, centroid: jax.Array, rotation: jax.Array, reach: jax.Array):
+def detect(model: Model, centroid: jax.Array, rotation: jax.Array, reach: jax.Array, turn: jax.Array):
     """Contacts whose gap is below the pair's detection distance ``reach[a] + reach[b]``.
+
+    ``turn`` (N,) is the angle each body may turn in the step (widens corner tests).
 
     Returns ``(contacts (C,), needed (5,) int32)``: the slots each buffer needed (candidates,
     pp, pb, bb pairs, contacts); any ``needed > capacity`` means the result is incomplete.
@@ -63,7 +65,7 @@ def detect(model: Model, centroid: jax.Array, rotation: jax.Array, reach: jax.Ar
     groups.append((rec, geo & pp_ok[:, None], pp_i, pp_j))
     rec, geo = particle_polygon(model, centroid, verts, particle, polygon)
     groups.append((rec, geo & pb_ok[:, None], pb_i, pb_j))
-    rec, geo = polygon_polygon(model, verts, bb_i, bb_j, reach[bb_i] + reach[bb_j])
+    rec, geo = polygon_polygon(model, verts, bb_i, bb_j, reach[bb_i] + reach[bb_j], turn[bb_i] + turn[bb_j])
     groups.append((rec, geo & bb_ok[:, None], bb_i, bb_j))
 
     def flatten(rec, geo, pi, pj):

@@ -18,8 +18,9 @@ import jax.numpy as jnp
 
 from jaxdda.types import B_HOLE, B_LINE, B_POINT, RING, Contacts, Model
 
-# A vertex's wedge may cross an edge line by this much (sine of the angle) and still
-# count as touching it from outside: edge-edge contacts are parallel up to round-off.
+# A vertex's wedge may cross an edge line by this much (sine of the angle), plus the angle
+# the two bodies can turn in the step, and still count as touching it from outside: a
+# block tilted by 0.002 rad and spinning must keep both corners of the face it lands on.
 WEDGE_TOL = 1e-7
 # A polygon vertex may lie this fraction of the smaller body's size behind an edge and
 # still be held by it (recovers from small penetrations without catching back edges).
@@ -121,10 +122,13 @@ def _vertex_edge_terms(vx, nx, px, vy, ny):
     return s, t, clear
 
 
-def polygon_polygon(model: Model, verts: jax.Array, i: jax.Array, j: jax.Array, near_dist: jax.Array):
+def polygon_polygon(model: Model, verts: jax.Array, i: jax.Array, j: jax.Array, near_dist: jax.Array,
+                    turn: jax.Array):
     """Polygons i (A) and j (B): slots (P, 2 V^2): A's vertices on B's edges, then B's on A's.
 
-    ``near_dist`` (P,): two vertices closer than this form a vertex-vertex contact.
+    ``near_dist`` (P,): two vertices closer than this form a vertex-vertex contact, and a
+    vertex may project this far beyond an edge's end (it can slide onto the edge in the
+    step). ``turn`` (P,): the angle the pair can turn relative to each other in the step.
     """
     v_max = model.max_vertices
     va, vb = verts[i], verts[j]
@@ -137,7 +141,9 @@ def polygon_polygon(model: Model, verts: jax.Array, i: jax.Array, j: jax.Array, 
 
     pen = -PENETRATION_FRACTION * jnp.minimum(model.bound_radius[i], model.bound_radius[j])[:, None, None]
     pair_mask = ma[:, :, None] & mb[:, None, :]
-    near = pair_mask & (jnp.linalg.norm(va[:, :, None] - vb[:, None, :], axis=-1) <= near_dist[:, None, None])
+    # Corners closer than the detection distance, or overlapping (then they may be farther
+    # apart, each just past the end of the other's edge), form a vertex-vertex contact.
+    near = pair_mask & (jnp.linalg.norm(va[:, :, None] - vb[:, None, :], axis=-1) <= near_dist[:, None, None] - pen)
 
     def gather_e(x, idx):  # x (P, V, E), pick column idx (P, E-index per column)
         return jnp.take_along_axis(x, jnp.broadcast_to(idx[:, None, :], x.shape), axis=2)
@@ -154,21 +160,27 @@ def polygon_polygon(model: Model, verts: jax.Array, i: jax.Array, j: jax.Array, 
     ], -1)  # (P, Va, Vb, 4)
     winner = jnp.argmax(cand, -1)
 
-    def interior(s, t, clear, near_start, near_end, mask):
-        return (mask & ~near_start & ~near_end & (t >= 0) & (t <= 1) & (s >= pen) & (clear >= -WEDGE_TOL))
+    wedge_tol = (jnp.sin(jnp.minimum(turn, 0.5 * jnp.pi)) + WEDGE_TOL)[:, None, None]
+
+    def interior(s, t, clear, near_start, near_end, mask, edge_len):
+        slack = (near_dist[:, None] / edge_len)[:, None, :]
+        return (mask & ~near_start & ~near_end & (t >= -slack) & (t <= 1 + slack) & (s >= pen)
+                & (clear >= -wedge_tol))
 
     # A's vertex a on B's edge e = (b_e -> b_{e+1}).
     near_end_ab = gather_e(near, nb)
     win_end_ab = gather_e(winner, nb)
     vv_ab = (near & (winner == 1)) | (near_end_ab & (win_end_ab == 0))
-    ok_ab = interior(s_ab, t_ab, c_ab, near, near_end_ab, pair_mask) | (vv_ab & pair_mask)
+    len_b = jnp.linalg.norm(vbn - vb, axis=-1) + 1e-300
+    len_a = jnp.linalg.norm(van - va, axis=-1) + 1e-300
+    ok_ab = interior(s_ab, t_ab, c_ab, near, near_end_ab, pair_mask, len_b) | (vv_ab & pair_mask)
     # B's vertex b on A's edge f = (a_f -> a_{f+1}).
     near_t, win_t = jnp.swapaxes(near, 1, 2), jnp.swapaxes(winner, 1, 2)  # (P, Vb, Va)
     near_end_ba = gather_e(near_t, na)
     win_end_ba = gather_e(win_t, na)
     mask_ba = jnp.swapaxes(pair_mask, 1, 2)
     vv_ba = (near_t & (win_t == 3)) | (near_end_ba & (win_end_ba == 2))
-    ok_ba = interior(s_ba, t_ba, c_ba, near_t, near_end_ba, mask_ba) | (vv_ba & mask_ba)
+    ok_ba = interior(s_ba, t_ba, c_ba, near_t, near_end_ba, mask_ba, len_a) | (vv_ba & mask_ba)
 
     la, lb = model.local_vertices[i], model.local_vertices[j]
     vi = jnp.arange(v_max)

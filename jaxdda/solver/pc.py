@@ -45,8 +45,8 @@ def solve(apply_w: Callable[[jax.Array], jax.Array], w_diag: jax.Array, b: jax.A
     scale = jnp.where(enabled[:, None], 1.0 / jnp.sqrt(jnp.where(w_diag > 0, w_diag, 1.0)), 0.0)
     ratio = mu * scale[:, 0] / jnp.where(scale[:, 1] > 0, scale[:, 1], 1.0)
 
-    def project(z):
-        return coulomb_projection(z, ratio, enabled)
+    def project(z, normal=None):
+        return coulomb_projection(z, ratio, enabled, normal)
 
     def field(y):  # F(y) = S (W S y + b)
         return scale * (apply_w(scale * y) + b)
@@ -65,7 +65,9 @@ def solve(apply_w: Callable[[jax.Array], jax.Array], w_diag: jax.Array, b: jax.A
 
     def body(carry):
         y, fy, beta, k, _ = carry
-        yt = project(y - beta * fy)
+        # X(p) is frozen at the current iterate's normal force for this iteration, so
+        # the prediction and the correction project onto one convex set.
+        yt = project(y - beta * fy, y[:, 0])
         ft = field(yt)
         dy, df = y - yt, fy - ft
         ny = jnp.sqrt(jnp.sum(dy * dy))
@@ -74,7 +76,7 @@ def solve(apply_w: Callable[[jax.Array], jax.Array], w_diag: jax.Array, b: jax.A
         d = dy - beta * df
         dd = jnp.sum(d * d)
         alpha = jnp.sum(dy * d) / jnp.where(dd > 0, dd, 1.0)
-        y_new = project(y - GAMMA * alpha * beta * ft)
+        y_new = project(y - GAMMA * alpha * beta * ft, y[:, 0])
         y_new = jnp.where(accept, y_new, y)
         f_new = jnp.where(accept, field(y_new), fy)
         beta = jnp.where(accept, jnp.where(ratio_r < GROW, beta * 1.5, beta),
