@@ -36,15 +36,21 @@ def clockwise(n: jax.Array) -> jax.Array:
     return jnp.stack([n[..., 1], -n[..., 0]], -1)
 
 
+def _feature_points(c: Contacts, centroid: jax.Array, rotation: jax.Array):
+    """World positions of a's point, and of b's point (or edge start) and edge end."""
+    xa = to_world(centroid[c.a], rotation[c.a], c.pa)
+    xq = to_world(centroid[c.b], rotation[c.b], c.qb)
+    xe = to_world(centroid[c.b], rotation[c.b], c.eb)
+    return xa, xq, xe
+
+
 def gap_frame(c: Contacts, centroid: jax.Array, rotation: jax.Array):
     """Signed gap (C,), unit normal (C, 2) and contact point (C, 2) at the given poses.
 
     ``centroid`` (N, 2) and ``rotation`` (N,) may be any configuration: the gap is exact
     (nonlinear) in the poses, which the step uses to evaluate it at the predictor.
     """
-    xa = to_world(centroid[c.a], rotation[c.a], c.pa)
-    xq = to_world(centroid[c.b], rotation[c.b], c.qb)
-    xe = to_world(centroid[c.b], rotation[c.b], c.eb)
+    xa, xq, xe = _feature_points(c, centroid, rotation)
 
     d_unit, dist = _safe_unit(xa - xq)
     t_unit, _ = _safe_unit(xe - xq)
@@ -81,10 +87,8 @@ def gap_change(c: Contacts, centroid: jax.Array, rotation: jax.Array, shift: jax
     def moved(body, local):
         return shift[body] + _rotation_increment(rotation[body], turn[body], local)
 
-    ua, uq, ue = moved(c.a, c.pa), moved(c.b, c.qb), moved(c.b, c.eb)
-    xa = to_world(centroid[c.a], rotation[c.a], c.pa)
-    xq = to_world(centroid[c.b], rotation[c.b], c.qb)
-    xe = to_world(centroid[c.b], rotation[c.b], c.eb)
+    ua, uq = moved(c.a, c.pa), moved(c.b, c.qb)
+    xa, xq, xe = _feature_points(c, centroid, rotation)
     r, dr = xa - xq, ua - uq
 
     # Points: |r + dr| - |r| = (2 r.dr + |dr|^2) / (|r + dr| + |r|).
