@@ -22,7 +22,9 @@ class Trajectory:
     ends at index k.
 
     ``info`` holds one StepInfo entry per step (leading axis S); ``info.contacts`` the
-    per-step contact report, padded to the largest contact capacity of the run.
+    per-step contact report, padded to the largest contact capacity of the run (its
+    ``moment`` holds the rolling resistance moments). Cemented joints (found at t = 0,
+    ``scene.model.joint_a/joint_b``) report ``joint_tension`` and ``joint_broken`` (S, J).
     """
 
     scene: Scene
@@ -30,12 +32,27 @@ class Trajectory:
     centroid: np.ndarray  # (S+1, bodies, 2)
     rotation: np.ndarray  # (S+1, bodies)
     velocity: np.ndarray  # (S+1, bodies, 3): vx, vy, omega
+    stress: np.ndarray  # (S+1, bodies, 3): sigma_x, sigma_y, tau_xy of deformable bodies (0 if rigid)
     info: StepInfo
     final_state: State
 
     @property
     def steps(self) -> int:
         return len(self.time) - 1
+
+    @property
+    def joint_tension(self) -> np.ndarray:
+        """(S, J) tension in each cemented joint per step (0 when it carries compression)."""
+        return self.info.joint_tension[:, : self.n_joints]
+
+    @property
+    def joint_broken(self) -> np.ndarray:
+        """(S, J) bool: the joint is broken at the end of each step."""
+        return self.info.joint_broken[:, : self.n_joints]
+
+    @property
+    def n_joints(self) -> int:
+        return int(np.sum(np.asarray(self.scene.model.joint_key) >= 0))
 
     def force_between(self, i: int, j: int) -> np.ndarray:
         """(S, 2): the resultant contact force that body i exerts on body j in each step
@@ -56,7 +73,7 @@ def _run_chunk(model: Model, state: State, params: Params, n_valid, length: int)
 
     def body(s, k):
         s2, info = jax.lax.cond(k < n_valid, lambda s: step(model, s, params), skip, s)
-        return s2, (s2.time, s2.centroid, s2.rotation, s2.velocity[:, :3], info)
+        return s2, (s2.time, s2.centroid, s2.rotation, s2.velocity[:, :3], s2.stress, info)
 
     return jax.lax.scan(body, state, jnp.arange(length))
 
@@ -70,7 +87,7 @@ def with_capacity(model: Model, state: State, capacity: Capacities) -> tuple[Mod
     old = state.contact_key.shape[0]
     if c >= old:
         key = jnp.concatenate([state.contact_key, -jnp.ones((c - old,), jnp.int64)])
-        force = jnp.concatenate([state.contact_force, jnp.zeros((c - old, 2))])
+        force = jnp.concatenate([state.contact_force, jnp.zeros((c - old,) + state.contact_force.shape[1:])])
     else:
         key, force = state.contact_key[:c], state.contact_force[:c]
     return dataclasses.replace(model, capacity=capacity), dataclasses.replace(state, contact_key=key, contact_force=force)
@@ -125,9 +142,11 @@ def _pad_contacts(report: ContactReport, width: int) -> ContactReport:
 def _assemble(scene: Scene, pieces, final_state: State) -> Trajectory:
     s0 = scene.state
     first = (np.asarray(s0.time)[None], np.asarray(s0.centroid)[None], np.asarray(s0.rotation)[None],
-             np.asarray(s0.velocity)[None, :, :3])
-    width = max(p[4].contacts.valid.shape[1] for p in pieces)
-    pieces = [p[:4] + (dataclasses.replace(p[4], contacts=_pad_contacts(p[4].contacts, width)),) for p in pieces]
+             np.asarray(s0.velocity)[None, :, :3], np.asarray(s0.stress)[None])
+    k_info = len(first)
+    width = max(p[k_info].contacts.valid.shape[1] for p in pieces)
+    pieces = [p[:k_info] + (dataclasses.replace(p[k_info], contacts=_pad_contacts(p[k_info].contacts, width)),)
+              for p in pieces]
     cols = [np.concatenate([f] + [p[k] for p in pieces]) for k, f in enumerate(first)]
-    info = jax.tree.map(lambda *xs: np.concatenate(xs), *[p[4] for p in pieces])
-    return Trajectory(scene, cols[0], cols[1], cols[2], cols[3], info, final_state)
+    info = jax.tree.map(lambda *xs: np.concatenate(xs), *[p[k_info] for p in pieces])
+    return Trajectory(scene, *cols, info, final_state)

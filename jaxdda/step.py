@@ -9,22 +9,23 @@ import dataclasses
 import jax
 import jax.numpy as jnp
 
+from jaxdda.bodies.elastic import current_shape, elastic_matrix, stiffness, stress_load, updated_stretch
 from jaxdda.bodies.mass import external_load, inverse_on_subspace, mass_matrix
+from jaxdda.contact.adjoint import adjoint_partner
 from jaxdda.contact.detect import detect
+from jaxdda.contact.keys import lookup
 from jaxdda.contact.kinematics import (apply_jacobian, apply_jacobian_t, clockwise, gap_change, gap_frame,
                                        jacobians)
 from jaxdda.integrate import free_displacement, impact_time, matvec, newmark_velocity
 from jaxdda.solver import pc
-from jaxdda.types import ContactReport, Contacts, Model, Params, State, StepInfo
+from jaxdda.solver.sets import ContactSets
+from jaxdda.types import NO_JOINT, POLYGON, ContactReport, Contacts, Model, Params, State, StepInfo
 
 
-def _warm_start(prev_key: jax.Array, prev_force: jax.Array, key: jax.Array, valid: jax.Array) -> jax.Array:
-    """Last step's force of the same feature pair, else zero (sort + binary search)."""
-    order = jnp.argsort(prev_key)
-    sorted_key = prev_key[order]
-    pos = jnp.clip(jnp.searchsorted(sorted_key, key), 0, key.shape[0] - 1)
-    match = valid & (sorted_key[pos] == key)
-    return jnp.where(match[:, None], prev_force[order[pos]], 0.0)
+def _warm_start(prev_key: jax.Array, prev_force: jax.Array, key: jax.Array) -> jax.Array:
+    """Last step's force of the same feature pair, else zero."""
+    idx, found = lookup(prev_key, key)
+    return jnp.where(found[:, None], prev_force[idx], 0.0)
 
 
 def _flexibility(jac: jax.Array, c: Contacts, inv: jax.Array, n_bodies: int):
@@ -52,43 +53,64 @@ def detection_reach(model: Model, state: State, params: Params) -> tuple[jax.Arr
     return jnp.where(model.fixed, 0.5 * params.margin, reach), jnp.where(model.fixed, 0.0, turn)
 
 
+def _contact_sets(model: Model, state: State, params: Params, c: Contacts, normal: jax.Array):
+    """The constraint data of this step's contacts, and which are intact cemented joints."""
+    mat_a, mat_b = model.material[c.a], model.material[c.b]
+    joint, is_joint = lookup(model.joint_key, c.key)
+    cemented = c.valid & is_joint & state.joint_intact[joint]
+    particle = (model.kind[c.a] != POLYGON) | (model.kind[c.b] != POLYGON)
+    sets = ContactSets(
+        enabled=c.valid,
+        friction=params.friction[mat_a, mat_b],
+        cohesion=params.cohesion[mat_a, mat_b],
+        tension=jnp.where(cemented, params.tensile[mat_a, mat_b], 0.0),
+        rolling=jnp.where(particle, params.rolling[mat_a, mat_b], 0.0),
+        partner=adjoint_partner(model, c, normal),
+    )
+    return sets, cemented, joint
+
+
 def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     """Advance one step of length params.dt. Pure: jit, vmap and scan apply."""
     n, dt = model.n_bodies, params.dt
     proj = model.dof_projector
-    mass = mass_matrix(model, params)
+    base = model
+    model = current_shape(base, state.stretch)  # local geometry in each body's current shape
+    volume = base.area * jnp.abs(jnp.linalg.det(state.stretch))
+    mass = mass_matrix(base, params, state)
     m_inv = inverse_on_subspace(mass, proj)
-    k_inv = inverse_on_subspace(2.0 * mass / dt ** 2, proj)  # rigid: K = 0
-    load = external_load(model, params)
-    vel = matvec(proj, state.velocity)
-
-    contacts, needed = detect(model, state.centroid, state.rotation, *detection_reach(model, state, params))
-    c = contacts
+    stiff = stiffness(elastic_matrix(params.young, params.poisson, base.plane_strain), volume)  # rigid: 0
+    k_inv = inverse_on_subspace(stiff + 2.0 * mass / dt ** 2, proj)
     centroid = state.centroid
+    load = (external_load(model, params, centroid, state.rotation, state.time + dt)
+            + stress_load(state.stress, volume))
+    vel = params.dynamic * matvec(proj, state.velocity)  # static analysis: each step starts at rest
+
+    contacts, needed = detect(model, centroid, state.rotation, *detection_reach(model, state, params))
+    c = contacts
     gap_now, normal, point = gap_frame(c, centroid, state.rotation)
     jac = jacobians(c, normal, point, gap_now, centroid)
     # Gaps as (gap at the origin) + (exact change over the displacement since): a body
     # at 50 m that moved 1e-13 m keeps its gaps exact, not rounded to ulp(50 m).
-    origin, no_turn = state.origin, jnp.zeros_like(state.rotation)
-    gap_ref = gap_frame(c, origin, no_turn)[0]
+    gap_ref = gap_frame(c, state.origin, jnp.zeros_like(state.rotation))[0]
+    gap0 = gap_ref + gap_change(c, state.origin, jnp.zeros_like(state.rotation), state.displacement, state.rotation)
 
-    def gap_at(shift, turn):
-        return gap_ref + gap_change(c, origin, no_turn, state.displacement + shift, state.rotation + turn)
+    def gap_at(d):  # exact gap after the step's displacement d (N, 6)
+        return gap0 + gap_change(c, centroid, state.rotation, d[:, :2], d[:, 2], d[:, 3:])
 
-    gap0 = gap_at(jnp.zeros_like(centroid), no_turn)
-    mat_a, mat_b = model.material[c.a], model.material[c.b]
-    mu = params.friction[mat_a, mat_b]
-    restitution = params.restitution[mat_a, mat_b]
+    sets, cemented, joint = _contact_sets(model, state, params, c, normal)
+    restitution = params.restitution[model.material[c.a], model.material[c.b]]
 
     # Force scale of the scene this step: residuals far below it are round-off.
     momentum = jnp.max(jnp.abs(matvec(mass, vel)) + jnp.abs(load) * dt, initial=0.0)
 
     # 1. Impacts: Newton's law at the impact time t*, impulses P (velocity level).
-    # A contact that carried force last step is sustained, not struck: it is closed (its
-    # gap, however small, is not a free fall to an impact), it takes part in the impact
-    # solve (so impulses pass through a resting stack) and it does not bounce.
-    p0 = _warm_start(state.contact_key, state.contact_force, c.key, c.valid)
-    sustained = p0[:, 0] > 0
+    # A contact that carried force last step, or is cemented, is sustained, not struck:
+    # it is closed (its gap, however small, is not a free fall to an impact), it takes
+    # part in the impact solve (so impulses pass through a resting stack) and it does not
+    # bounce. Cohesion and cement are finite forces: they give no impulse.
+    p0 = _warm_start(state.contact_key, state.contact_force, c.key)
+    sustained = (p0[:, 0] > 0) | cemented
     accel = 2.0 * (free_displacement(k_inv, mass, load, vel, dt) - vel * dt) / dt ** 2
     v_rel, a_rel = apply_jacobian(jac, c, vel), apply_jacobian(jac, c, accel)
     t_hit, hits = impact_time(gap0, v_rel[:, 0], a_rel[:, 0], dt)
@@ -96,49 +118,83 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     v_hit = v_rel + a_rel * t_hit[:, None]
     impacting = c.valid & ((hits & (v_hit[:, 0] < 0)) | sustained)
     bounce = jnp.where(sustained, 0.0, restitution)
-    b_imp = jnp.stack([(1.0 + bounce) * v_hit[:, 0], v_hit[:, 1]], -1)
+    b_imp = v_hit.at[:, 0].multiply(1.0 + bounce)
     apply_m, diag_m = _flexibility(jac, c, m_inv, n)
-    imp = pc.solve(apply_m, diag_m, b_imp, mu, impacting, jnp.zeros_like(b_imp), params.tol, params.max_iter,
-                   momentum)
+    zero = jnp.zeros_like(gap0)
+    imp_sets = sets._replace(enabled=impacting, cohesion=zero, tension=zero)
+    imp = pc.solve(apply_m, diag_m, b_imp, imp_sets, jnp.zeros_like(b_imp), params.tol, params.max_iter, momentum)
     v_star = vel + matvec(m_inv, apply_jacobian_t(jac, c, imp.force, n))
     shift = -matvec(m_inv, apply_jacobian_t(jac, c, imp.force * t_hit[:, None], n))
 
     # 2. Contact forces over the step (eq. 39); gap evaluated exactly at the predictor.
-    d_free = free_displacement(k_inv, mass, load, v_star, dt)
-    d_pred = d_free + shift
-    gap_pred = gap_at(d_pred[:, :2], d_pred[:, 2])
+    # The predictor carries last step's contact forces (applied in the start frame): in a
+    # steady contact it is then close to the solution, so the configuration the frame is
+    # taken in holds no motion that the contacts cancel (a tilt predicted from the free
+    # acceleration alone would shift every lever arm: a 1e4 N corner force by 1e-5 m).
     # The force acts along the normal of the mid-step configuration: normal to the chord
     # of the motion, so a frictionless sustained contact does no work (energy is kept on
-    # curved tracks; with the start normal it would do work p n.d every step).
-    mid_centroid, mid_rotation = centroid + 0.5 * d_pred[:, :2], state.rotation + 0.5 * d_pred[:, 2]
-    gap_mid, normal_mid, point_mid = gap_frame(c, mid_centroid, mid_rotation)
-    jac_mid = jacobians(c, normal_mid, point_mid, gap_mid, mid_centroid)
-    b_con = jnp.stack([gap_pred, apply_jacobian(jac_mid, c, d_pred)[:, 1]], -1)
-    apply_k, diag_k = _flexibility(jac_mid, c, k_inv, n)
-    con = pc.solve(apply_k, diag_k, b_con, mu, c.valid, p0, params.tol, params.max_iter, momentum / dt)
+    # curved tracks; with the start normal it would do work p n.d every step). The
+    # predictor's forces are applied in that frame too (found from a first predictor).
+    d_base = free_displacement(k_inv, mass, load, v_star, dt) + shift
 
-    # 3. Integrate: Newmark velocity from d; geometry from d plus the impact shift.
-    d = d_free + matvec(k_inv, apply_jacobian_t(jac_mid, c, con.force, n))
-    new_vel = newmark_velocity(d, v_star, dt, proj)
-    d_geo = d + shift
+    def mid_frame(d):
+        mid_centroid, mid_rotation = centroid + 0.5 * d[:, :2], state.rotation + 0.5 * d[:, 2]
+        gap_mid, normal_mid, point_mid = gap_frame(c, mid_centroid, mid_rotation)
+        return jacobians(c, normal_mid, point_mid, gap_mid, mid_centroid), normal_mid, point_mid
+
+    def predictor(frame):
+        return d_base + matvec(k_inv, apply_jacobian_t(frame, c, p0, n))
+
+    d_pred = predictor(mid_frame(predictor(jac))[0])
+    gap_pred = gap_at(d_pred)
+    jac_mid, normal_mid, point_mid = mid_frame(d_pred)
+    # G(p) = W p + b: the gap at the predictor plus the linear change from it; shear and
+    # rolling gaps are the relative motion over the step.
+    b_con = apply_jacobian(jac_mid, c, d_base)
+    b_con = b_con.at[:, 0].set(gap_pred - apply_jacobian(jac_mid, c, d_pred - d_base)[:, 0])
+    apply_k, diag_k = _flexibility(jac_mid, c, k_inv, n)
+    force_scale = momentum / dt
+    con = pc.solve(apply_k, diag_k, b_con, sets, p0, params.tol, params.max_iter, force_scale)
+
+    # 3. Cement: an inextensible joint (hypothesis ii) that still opens under its full
+    # share of the strength has failed (eq. 63); it never heals (hypothesis iv).
+    gap_end = apply_k(con.force)[:, 0] + b_con[:, 0]
+    size = jnp.maximum(jnp.max(jnp.abs(con.force), initial=0.0), force_scale)
+    opening = gap_end / jnp.where(diag_k[:, 0] > 0, diag_k[:, 0], 1.0) > 10.0 * params.tol * size
+    breaks = cemented & (con.force[:, 0] < 0) & opening
+    n_joints = model.joint_key.shape[0]
+    joint_slot = jnp.where(cemented, joint, n_joints)  # out of range: dropped by segment ops
+    broke = jax.ops.segment_max(breaks.astype(jnp.int32), joint_slot, n_joints) > 0
+    joint_intact = state.joint_intact & ~broke
+    tension = jax.ops.segment_sum(jnp.maximum(-con.force[:, 0], 0.0), joint_slot, n_joints)
+
+    # 4. Integrate: Newmark velocity from d; geometry from d plus the impact shift.
+    d_geo = d_base + matvec(k_inv, apply_jacobian_t(jac_mid, c, con.force, n))
+    new_vel = newmark_velocity(d_geo - shift, v_star, dt, proj)
+    strain = d_geo[:, 3:]
     new_state = State(
         time=state.time + dt,
-        origin=origin,
+        origin=state.origin,
         displacement=state.displacement + d_geo[:, :2],
         rotation=state.rotation + d_geo[:, 2],
         velocity=new_vel,
+        stretch=updated_stretch(state.stretch, state.rotation, d_geo[:, 2], strain),
+        stress=state.stress + jnp.einsum("nij,nj->ni", elastic_matrix(params.young, params.poisson,
+                                                                      base.plane_strain), strain),
         contact_key=c.key,
         contact_force=con.force,
+        joint_intact=joint_intact,
     )
 
-    def to_global(nt, nrm):
-        return nt[:, :1] * nrm + nt[:, 1:] * clockwise(nrm)
+    def to_global(p, nrm):
+        return p[:, :1] * nrm + p[:, 1:2] * clockwise(nrm)
 
     force = jnp.where(c.valid[:, None], to_global(imp.force / dt, normal) + to_global(con.force, normal_mid), 0.0)
     report = ContactReport(
         valid=c.valid, a=c.a, b=c.b, point=point_mid, normal=normal_mid,
         normal_force=jnp.sum(force * normal_mid, -1), shear_force=jnp.sum(force * clockwise(normal_mid), -1),
-        force=force, gap=gap0)
+        force=force, moment=jnp.where(c.valid, imp.force[:, 2] / dt + con.force[:, 2], 0.0),
+        cemented=cemented, gap=gap0)
     capacity = jnp.array(dataclasses.astuple(model.capacity), jnp.int32)
     info = StepInfo(
         iterations=imp.iterations + con.iterations,
@@ -148,6 +204,8 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
         overflow=jnp.any(needed > capacity),
         n_contacts=jnp.sum(c.valid).astype(jnp.int32),
         max_penetration=jnp.maximum(0.0, -jnp.min(jnp.where(c.valid, gap0, 0.0))),
+        joint_tension=tension,
+        joint_broken=~joint_intact & (model.joint_key != NO_JOINT),
         contacts=report,
     )
     return new_state, info

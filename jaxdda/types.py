@@ -56,10 +56,18 @@ class Model:
     n_vertices: jax.Array  # (N,) int32
     area: jax.Array  # (N,)
     polar_moment: jax.Array  # (N,) integral of r^2 dA about the centroid
+    second_moment: jax.Array  # (N, 3) integrals of x^2, y^2, xy dA about the centroid, at rotation 0
+    plane_strain: jax.Array  # (N,) bool: a deformable body in plane strain (else plane stress)
     bound_radius: jax.Array  # (N,) largest distance from the centroid to the boundary
     gravity_scale: jax.Array  # (N,) 1.0 where gravity acts, 0.0 where it is ignored
     material: jax.Array  # (N,) int32 index into the material tables of Params
     dof_projector: jax.Array  # (N, 6, 6) projector onto the active dof subspace
+    load_body: jax.Array  # (L,) int32 body of each point load
+    load_point: jax.Array  # (L, 2) its point of application, body-local (moves with the body)
+    joint_key: jax.Array  # (J,) int64 contact key of each cemented joint found at t = 0 (-2: padding)
+    joint_a: jax.Array  # (J,) int32 the joint's two bodies (for reports)
+    joint_b: jax.Array  # (J,) int32
+    joint_point: jax.Array  # (J, 2) where the joint was at t = 0
     capacity: Capacities = static_field()
     n_bodies: int = static_field()
     max_vertices: int = static_field()
@@ -72,8 +80,16 @@ class Params:
     dt: jax.Array  # ()
     gravity: jax.Array  # (2,)
     density: jax.Array  # (N,)
+    young: jax.Array  # (N,) Young's modulus E of a deformable body (0: rigid)
+    poisson: jax.Array  # (N,) Poisson's ratio
     friction: jax.Array  # (M, M) Coulomb coefficient per material pair (eq. 19)
     restitution: jax.Array  # (M, M) Newton restitution per material pair
+    cohesion: jax.Array  # (M, M) cohesion c of an interface, a force shared by adjoint contacts (eqs. 19, 42-45)
+    rolling: jax.Array  # (M, M) rolling resistance coefficient delta, a length (eq. 55)
+    tensile: jax.Array  # (M, M) tensile strength t of a cemented interface, a force shared by its joints (eq. 70)
+    load_force: jax.Array  # (L, 2) point load at t = 0 (world frame)
+    load_rate: jax.Array  # (L, 2) its rate of change: F(t) = load_force + load_rate * t
+    dynamic: jax.Array  # () share of the velocity carried into the next step: 1 dynamic, 0 static (Shi's k01)
     tol: jax.Array  # () relative tolerance of the contact solve
     max_iter: jax.Array  # () iteration cap of the contact solve (a float, so grad ignores it)
     margin: jax.Array  # () base contact detection distance d0 (added to the swept distance)
@@ -89,8 +105,11 @@ class State:
     displacement: jax.Array  # (N, 2) centroid displacement since the start
     rotation: jax.Array  # (N,) total rotation angle since the start (counter-clockwise)
     velocity: jax.Array  # (N, 6) generalised velocity; rigid: [vx, vy, omega, 0, 0, 0]
+    stretch: jax.Array  # (N, 2, 2) S: the current shape is x = c + R(rotation) S X (I when rigid)
+    stress: jax.Array  # (N, 3) [sigma_x, sigma_y, tau_xy] of a deformable body (uniform, eq. 7)
     contact_key: jax.Array  # (C,) int64 keys of last step's contacts (-1 = empty)
-    contact_force: jax.Array  # (C, 2) last step's (normal, shear) forces for warm start
+    contact_force: jax.Array  # (C, 3) last step's (normal, shear, rolling moment) for warm start
+    joint_intact: jax.Array  # (J,) bool: the cemented joint still holds (hypothesis iv: never heals)
 
     @property
     def centroid(self) -> jax.Array:
@@ -134,6 +153,8 @@ class ContactReport:
     normal_force: jax.Array  # (C,)
     shear_force: jax.Array  # (C,) along tau = normal rotated clockwise
     force: jax.Array  # (C, 2)
+    moment: jax.Array  # (C,) rolling resistance moment on a from b (counter-clockwise +)
+    cemented: jax.Array  # (C,) bool: an intact cemented joint (its normal force may be a tension)
     gap: jax.Array  # (C,) gap at the start of the step
 
 
@@ -148,8 +169,14 @@ class StepInfo:
     overflow: jax.Array  # () bool: some buffer was too small (results incomplete)
     n_contacts: jax.Array  # () int32
     max_penetration: jax.Array  # () largest overlap at the start of the step (>= 0)
+    joint_tension: jax.Array  # (J,) tension carried by each cemented joint (0 once broken or apart)
+    joint_broken: jax.Array  # (J,) bool: broken at the end of this step
     contacts: ContactReport
 
 
+NCOMP = 3  # unknowns per contact: normal force, shear force, rolling moment
+NO_JOINT = -2  # joint_key of a padding joint (contact keys are >= -1)
+
+
 def zeros_contact_memory(capacity: int) -> tuple[jax.Array, jax.Array]:
-    return -jnp.ones((capacity,), jnp.int64), jnp.zeros((capacity, 2))
+    return -jnp.ones((capacity,), jnp.int64), jnp.zeros((capacity, NCOMP))

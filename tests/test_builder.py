@@ -44,6 +44,13 @@ def square(x=0.0, y=0.0, s=1.0):
      ["body 0 (polygon)", "angular_velocity"]),
     (lambda sb: sb.add_material("rock", friction=-0.1), ["rock", "friction"]),
     (lambda sb: sb.add_material("rock", restitution=1.5), ["rock", "restitution"]),
+    (lambda sb: sb.add_material("rock", cohesion=-1.0), ["rock", "cohesion", ">= 0"]),
+    (lambda sb: sb.add_material("rock", rolling=-0.01), ["rock", "rolling", ">= 0"]),
+    (lambda sb: sb.add_material("rock", tensile=-5.0), ["rock", "tensile", ">= 0"]),
+    (lambda sb: sb.add_material("rock", tensile=math.nan), ["rock", "tensile", "not finite"]),
+    (lambda sb: sb.set_interface("default", "default", cohesion=-1.0), ["interface", "cohesion"]),
+    (lambda sb: sb.set_interface("default", "default", stickiness=1.0), ["interface", "stickiness"]),
+    (lambda sb: sb.add_load(0, force=(1.0, 0.0)), ["load 0", "body"]),
 ])
 def test_bad_body_or_material_is_named(call, words):
     with pytest.raises(SceneError) as err:
@@ -117,6 +124,32 @@ def test_mixed_materials_use_the_smaller_value_unless_an_interface_is_set():
     assert f[idx["rock"], idx["steel"]] == 0.5 and e[idx["rock"], idx["steel"]] == 0.3
     with pytest.raises(SceneError, match="granite"):
         sb.set_interface("rock", "granite", friction=0.1)
+
+
+def test_contact_law_tables_cover_every_field():
+    sb = builder()
+    sb.add_material("rock", friction=0.6, cohesion=50.0, rolling=0.01, tensile=200.0)
+    sb.add_material("sand", cohesion=10.0, rolling=0.02)
+    sb.set_interface("rock", "sand", tensile=30.0)
+    sb.add_disk(center=(0, 0), radius=1.0, density=1.0, material="rock")
+    scene = sb.build()
+    idx = {m: k for k, m in enumerate(scene.materials)}
+    r, s = idx["rock"], idx["sand"]
+    p = scene.params
+    assert (p.cohesion[r, r], p.rolling[r, r], p.tensile[r, r]) == (50.0, 0.01, 200.0)
+    assert (p.cohesion[r, s], p.rolling[r, s], p.tensile[r, s]) == (10.0, 0.01, 30.0)
+
+
+def test_point_loads():
+    sb = builder()
+    sb.add_disk(center=(1.0, 2.0), radius=1.0, density=1.0)
+    sb.add_load(0, force=(3.0, 0.0), at=(1.0, 3.0), rate=(0.0, -1.0))
+    scene = sb.build()
+    np.testing.assert_allclose(scene.model.load_point, [[0.0, 1.0]])  # body-local
+    np.testing.assert_allclose(scene.params.load_force, [[3.0, 0.0]])
+    np.testing.assert_allclose(scene.params.load_rate, [[0.0, -1.0]])
+    with pytest.raises(SceneError, match="load 1.*force.*not finite"):
+        sb.add_load(0, force=(math.inf, 0.0))
 
 
 def test_polygon_is_stored_counter_clockwise_about_its_centroid():

@@ -22,7 +22,8 @@ def trajectory(frames: int = 4) -> Trajectory:
     centroid = c0 + moving[None, :, None] * np.stack([t, -t], -1)[:, None, :] * 20
     rotation = moving[None, :] * t[:, None] * 30.0
     velocity = np.zeros((frames, scene.n_bodies, 3))
-    return Trajectory(scene, t, centroid, rotation, velocity, None, scene.state)
+    stress = np.zeros((frames, scene.n_bodies, 3))
+    return Trajectory(scene, t, centroid, rotation, velocity, stress, None, scene.state)
 
 
 def test_returns_figure_and_saves_png(tmp_path):

@@ -1,6 +1,8 @@
 """Host-side (numpy) geometry of body shapes: areas, centroids, polar moments, validity."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 # Relative tolerance of the orientation test, scaled by the squared polygon size.
@@ -112,3 +114,21 @@ def disk_polar_moment(radius: float) -> float:
 def ring_polar_moment(outer: float, inner: float) -> float:
     """Integral of r^2 dA over an annulus about its centre: pi (Ro^4 - Ri^4) / 2."""
     return float(np.pi * (outer**4 - inner**4) / 2.0)
+
+
+def polygon_second_moments(local: np.ndarray) -> np.ndarray:
+    """[int x^2, int y^2, int xy] dA of a counter-clockwise polygon whose vertices ``local``
+    (n, 2) are relative to its centroid (Green's theorem, edge by edge)."""
+    x, y = local[:, 0], local[:, 1]
+    xn, yn = np.roll(x, -1), np.roll(y, -1)
+    cross = x * yn - xn * y
+    ixx = np.sum(cross * (x * x + x * xn + xn * xn)) / 12.0
+    iyy = np.sum(cross * (y * y + y * yn + yn * yn)) / 12.0
+    ixy = np.sum(cross * (x * yn + 2 * x * y + 2 * xn * yn + xn * y)) / 24.0
+    return np.array([ixx, iyy, ixy])
+
+
+def round_second_moments(outer: float, inner: float = 0.0) -> np.ndarray:
+    """[int x^2, int y^2, int xy] dA of a disk (inner = 0) or ring about its centre."""
+    i = 0.25 * math.pi * (outer ** 4 - inner ** 4)
+    return np.array([i, i, 0.0])

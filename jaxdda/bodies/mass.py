@@ -4,19 +4,16 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from jaxdda.types import NDOF, Model, Params
+from jaxdda.bodies.shape import shape_function, to_world
+from jaxdda.bodies.elastic import consistent_mass, current_moments
+from jaxdda.types import NDOF, Model, Params, State
 
 
-def mass_matrix(model: Model, params: Params) -> jax.Array:
-    """Consistent mass matrix per body (N, 6, 6): integral of rho T^T T dA (Appendix A.5).
-
-    For a rigid body about its centroid it is diag(m, m, I) on the first three slots.
-    """
-    m = params.density * model.area
-    inertia = params.density * model.polar_moment
-    zero = jnp.zeros_like(m)
-    diag = jnp.stack([m, m, inertia, zero, zero, zero], -1)
-    return diag[..., :, None] * jnp.eye(NDOF)
+def mass_matrix(model: Model, params: Params, state: State) -> jax.Array:
+    """Consistent mass matrix per body (N, 6, 6) in its current shape: integral of
+    rho T^T T dA (Appendix A.5). For a rigid body it is diag(m, m, I) on the first three slots."""
+    moments = current_moments(model.second_moment, state.rotation, state.stretch)
+    return consistent_mass(params.density, model.area, moments)
 
 
 def inverse_on_subspace(a: jax.Array, projector: jax.Array) -> jax.Array:
@@ -29,8 +26,16 @@ def inverse_on_subspace(a: jax.Array, projector: jax.Array) -> jax.Array:
     return projector @ jnp.linalg.inv(reg) @ projector
 
 
-def external_load(model: Model, params: Params) -> jax.Array:
-    """Generalised external load per body (N, 6): the body force (gravity) on u0, v0."""
+def external_load(model: Model, params: Params, centroid: jax.Array, rotation: jax.Array,
+                  time: jax.Array) -> jax.Array:
+    """Generalised external load per body (N, 6) at ``time``: the body force (gravity) on
+    u0, v0, plus each point load F(t) = F0 + rate t as T(x)^T F at its material point x
+    in the given configuration (eqs. 2, 7, 13)."""
     m = params.density * model.area * model.gravity_scale
     load = jnp.zeros((model.n_bodies, NDOF))
-    return load.at[:, 0].set(m * params.gravity[0]).at[:, 1].set(m * params.gravity[1])
+    load = load.at[:, 0].set(m * params.gravity[0]).at[:, 1].set(m * params.gravity[1])
+    body = model.load_body
+    x = to_world(centroid[body], rotation[body], model.load_point)
+    force = params.load_force + params.load_rate * time
+    generalised = jnp.einsum("lij,li->lj", shape_function(x, centroid[body]), force)
+    return load + jax.ops.segment_sum(generalised, body, model.n_bodies)

@@ -7,6 +7,7 @@ import jax
 import jax.numpy as jnp
 
 from jaxdda.bodies.shape import to_world
+from jaxdda.contact.adjoint import slots_per_pair
 from jaxdda.contact.broadphase import compact, grid_pairs
 from jaxdda.contact.kinematics import gap_frame
 from jaxdda.contact.narrowphase import particle_particle, particle_polygon, polygon_polygon
@@ -59,7 +60,7 @@ def detect(model: Model, centroid: jax.Array, rotation: jax.Array, reach: jax.Ar
     particle = jnp.where(pb_poly_first, pb_j, pb_i)
     polygon = jnp.where(pb_poly_first, pb_i, pb_j)
 
-    slots_per_pair = 2 * v_max * v_max + 2 * v_max + 1
+    slots = slots_per_pair(v_max)
     groups = []
     rec, geo = particle_particle(model, centroid, pp_i, pp_j)
     groups.append((rec, geo & pp_ok[:, None], pp_i, pp_j))
@@ -69,7 +70,7 @@ def detect(model: Model, centroid: jax.Array, rotation: jax.Array, reach: jax.Ar
     groups.append((rec, geo & bb_ok[:, None], bb_i, bb_j))
 
     def flatten(rec, geo, pi, pj):
-        pair_key = (pi.astype(jnp.int64) * n + pj)[:, None] * slots_per_pair
+        pair_key = (pi.astype(jnp.int64) * n + pj)[:, None] * slots
         rec = dataclasses.replace(rec, key=rec.key + pair_key)
         return jax.tree.map(lambda x: x.reshape((-1,) + x.shape[2:]), rec), geo.reshape(-1)
 

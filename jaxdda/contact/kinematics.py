@@ -11,6 +11,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from jaxdda.bodies.elastic import strain_tensor
 from jaxdda.bodies.shape import shape_function, to_world
 from jaxdda.types import B_HOLE, B_LINE, Contacts
 
@@ -76,47 +77,69 @@ def _rotation_increment(theta: jax.Array, dtheta: jax.Array, local: jax.Array) -
     return to_world(jnp.zeros_like(inc), theta, inc)
 
 
+def _radius_change(radius: jax.Array, turn: jax.Array, strain: jax.Array) -> jax.Array:
+    """Change of a particle's radius when x - c -> (R(turn) + eps I)(x - c) (eq. 17)."""
+    eps = 0.5 * (strain[:, 0] + strain[:, 1])
+    scale = jnp.hypot(jnp.cos(turn) + eps, jnp.sin(turn)) - 1.0
+    return jnp.where(eps == 0, 0.0, radius * scale)
+
+
 def gap_change(c: Contacts, centroid: jax.Array, rotation: jax.Array, shift: jax.Array,
-               turn: jax.Array) -> jax.Array:
-    """Exact change of the gap (C,) when every body moves by ``shift`` (N, 2) and turns by
-    ``turn`` (N,) from (centroid, rotation).
+               turn: jax.Array, strain: jax.Array | None = None) -> jax.Array:
+    """Exact change of the gap (C,) when every body moves by ``shift`` (N, 2), turns by
+    ``turn`` (N,) and strains by ``strain`` (N, 3) from (centroid, rotation): a point at
+    offset r from its centroid moves to (R(turn) + E) r (post-adjusted field, eqs. 16-18).
 
     Computed from relative quantities only, so a gap change of 1e-20 m is resolved next
     to coordinates of 1e2 m (the contact stage multiplies gaps by 2 M / dt^2).
     """
+    strain = jnp.zeros(turn.shape + (3,)) if strain is None else strain
+    strained = jnp.any(strain != 0, -1)
+
     def moved(body, local):
-        return shift[body] + _rotation_increment(rotation[body], turn[body], local)
+        offset = to_world(jnp.zeros_like(local), rotation[body], local)
+        stretch = jnp.einsum("cij,cj->ci", strain_tensor(strain[body]), offset)
+        return shift[body] + _rotation_increment(rotation[body], turn[body], local) + stretch
 
     ua, uq = moved(c.a, c.pa), moved(c.b, c.qb)
     xa, xq, xe = _feature_points(c, centroid, rotation)
     r, dr = xa - xq, ua - uq
+    d_ra = _radius_change(c.ra, turn[c.a], strain[c.a])
+    d_rb = _radius_change(c.rb, turn[c.b], strain[c.b])
 
     # Points: |r + dr| - |r| = (2 r.dr + |dr|^2) / (|r + dr| + |r|).
     rr = jnp.linalg.norm(r, axis=-1)
     rn = jnp.linalg.norm(r + dr, axis=-1)
     den = rr + rn
     dist_change = (2.0 * jnp.sum(r * dr, -1) + jnp.sum(dr * dr, -1)) / jnp.where(den > 0, den, 1.0)
-    # Lines: n' . (r + dr) - n . r with n' = R(turn_b) n.
+    # Lines: n' . (r + dr) - n . r with n' = R(turn_b) n (rigid b), or the normal of the
+    # strained edge (R(turn_b) + E_b) t.
     t_unit, _ = _safe_unit(xe - xq)
     n = clockwise(t_unit)
     dn = _rotation_increment(jnp.zeros_like(turn[c.b]), turn[c.b], n)
-    line_change = jnp.sum(dn * (r + dr), -1) + jnp.sum(n * dr, -1)
-    return jnp.where(c.btype == B_LINE, line_change, jnp.where(c.btype == B_HOLE, -dist_change, dist_change))
+    t_new = clockwise(n + dn) * -1.0 + jnp.einsum("cij,cj->ci", strain_tensor(strain[c.b]), t_unit)
+    dn = jnp.where(strained[c.b][:, None], clockwise(_safe_unit(t_new)[0]) - n, dn)
+    line_change = jnp.sum(dn * (r + dr), -1) + jnp.sum(n * dr, -1) - d_ra
+    return jnp.where(c.btype == B_LINE, line_change,
+                     jnp.where(c.btype == B_HOLE, d_rb - d_ra - dist_change, dist_change - d_ra - d_rb))
 
 
 def jacobians(c: Contacts, normal: jax.Array, point: jax.Array, gap: jax.Array, centroid: jax.Array) -> jax.Array:
-    """Contact Jacobians (C, 2 sides, 2, 6): rows (n, tau) of s * [n, tau]^T T(x) (eq. 10).
+    """Contact Jacobians (C, 2 sides, 3, 6): rows (n, tau) of s * [n, tau]^T T(x) (eq. 10),
+    and the rolling row: the rotation dof theta (eqs. 13-15, 54).
 
     Side a gets +, side b gets -, so that J d is the relative displacement of a against
-    b at the contact, in the (normal, shear) frame (eqs. 31, 36-38). Each side uses its
-    own surface point (the midpoint -/+ gap/2 along n), so a lever arm is the body's
-    true radius even where the configuration used overlaps (as a predictor does).
+    b at the contact, in the (normal, shear) frame (eqs. 31, 36-38), and the relative
+    rotation (the rolling gap of eq. 54). Each side uses its own surface point (the
+    midpoint -/+ gap/2 along n), so a lever arm is the body's true radius even where the
+    configuration used overlaps (as a predictor does).
     """
     frame = jnp.stack([normal, clockwise(normal)], -2)  # (C, 2, 2) rows n, tau
     half = (0.5 * gap)[:, None] * normal
     ta = shape_function(point + half, centroid[c.a])
     tb = shape_function(point - half, centroid[c.b])
-    return jnp.stack([frame @ ta, -(frame @ tb)], 1)
+    roll = jnp.broadcast_to(jnp.eye(ta.shape[-1])[2], ta.shape[:1] + (1, ta.shape[-1]))
+    return jnp.stack([jnp.concatenate([frame @ ta, roll], 1), -jnp.concatenate([frame @ tb, roll], 1)], 1)
 
 
 def apply_jacobian(jac: jax.Array, c: Contacts, dofs: jax.Array) -> jax.Array:

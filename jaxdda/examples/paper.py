@@ -41,12 +41,19 @@ def disk_heap(heavy: bool = False) -> Scene:
     return sb.build()
 
 
-def block_stair(heavy: bool = False) -> Scene:
-    """7.2: four 20 x 10 blocks as a staircase; base reactions W/2 and 7W/2."""
-    sb = SceneBuilder(dt=0.001, gravity=(0.0, -G), name="paper-7.2")
+def block_stair(heavy: bool = False, *, young: float | None = None, poisson: float = 0.45) -> Scene:
+    """7.2: four 20 x 10 blocks as a staircase; base reactions W/2 and 7W/2. Rigid blocks,
+    or deformable ones with ``young`` (the paper: E = 1e14 Pa, nu = 0.45, plane stress),
+    which are run as a static analysis (``dynamic=0``, see docs/design.md).
+
+    The solver tolerance is 1e-14: the sub-stack's centroid is exactly above a corner, a
+    knife edge that amplifies the residual of a heavy base by ~1e4 (at 1e-12 the base
+    reactions wander by 0.1 N from step to step)."""
+    sb = SceneBuilder(dt=0.001, gravity=(0.0, -G), tol=1e-14, dynamic=1.0 if young is None else 0.0,
+                      name="paper-7.2")
     for k, x0 in enumerate((15.0, 10.0, 5.0, 0.0)):  # B1 (top) ... B4 (bottom)
         y0 = 10.0 * (3 - k)
-        sb.add_polygon(vertices=_rect(x0, y0, x0 + 20.0, y0 + 10.0), density=2000.0)
+        sb.add_polygon(vertices=_rect(x0, y0, x0 + 20.0, y0 + 10.0), density=2000.0, young=young, poisson=poisson)
     _support(sb, heavy, 2000.0, vertices=_rect(-20.0, -10.0, 60.0, 0.0))
     return sb.build()
 
@@ -72,4 +79,43 @@ def disk_in_ring(heavy: bool = False) -> Scene:
     sb = SceneBuilder(dt=0.005, gravity=(0.0, -G), name="paper-7.5")
     sb.add_disk(center=(-60.0, 0.0), radius=40.0, density=1.0)
     _support(sb, heavy, 1.0, center=(0.0, 0.0), inner_radius=100.0, outer_radius=110.0)
+    return sb.build()
+
+
+def block_pull(heavy: bool = False, *, cohesion: float = 400.0, friction: float = 0.0,
+               height: float = 0.7, force: float = 1000.0) -> Scene:
+    """7.6: a unit block on a fixed base pulled by F = ``force`` (1000 N) whose line of action is
+    ``height`` above the interface; cohesion c shared by the two adjoint corner contacts.
+    Body 0 is the block, load 0 the pull."""
+    sb = SceneBuilder(dt=0.01, gravity=(0.0, -G), name="paper-7.6")
+    sb.add_material("interface", friction=friction, cohesion=cohesion)
+    block = sb.add_polygon(vertices=_rect(0.0, 0.0, 1.0, 1.0), density=1000.0, material="interface")
+    _support(sb, heavy, 1000.0, vertices=_rect(-5.0, -1.0, 10.0, 0.0), material="interface")
+    sb.add_load(block, force=(force, 0.0), at=(0.0, height))
+    return sb.build()
+
+
+def disk_pull(heavy: bool = False, *, height: float = 1.0, friction: float = 10.0,
+              rolling: float = 0.0) -> Scene:
+    """7.7: a disk R = 1 on a fixed base pulled by F = 1000 N whose line of action is
+    ``height`` above the contact point; rolling resistance coefficient ``rolling`` (m).
+    Body 0 is the disk, load 0 the pull."""
+    sb = SceneBuilder(dt=0.01, gravity=(0.0, -G), name="paper-7.7")
+    sb.add_material("surface", friction=friction, rolling=rolling, restitution=0.0)
+    disk = sb.add_disk(center=(0.0, 1.0), radius=1.0, density=1000.0, material="surface")
+    _support(sb, heavy, 1000.0, vertices=_rect(-10.0, -1.0, 30.0, 0.0), material="surface")
+    sb.add_load(disk, force=(1000.0, 0.0), at=(0.0, height))
+    return sb.build()
+
+
+def cemented_pull(heavy: bool = False, *, height: float = 0.0, force: float = 1000.0, rate: float = 0.0,
+                  tensile: float = 2000.0) -> Scene:
+    """7.8: a 2 x 2 block B2 cemented along its left side to a fixed block B1 and pulled
+    away by F(t) = force + rate t on its vertical centre line, ``height`` above its middle.
+    No gravity. Body 0 is B2, body 1 is B1; load 0 the pull."""
+    sb = SceneBuilder(dt=0.01, gravity=(0.0, 0.0), name="paper-7.8")
+    sb.add_material("cement", tensile=tensile, restitution=0.0)
+    b2 = sb.add_polygon(vertices=_rect(0.0, -1.0, 2.0, 1.0), density=1000.0, material="cement")
+    _support(sb, heavy, 1000.0, vertices=_rect(-2.0, -2.0, 0.0, 2.0), material="cement")
+    sb.add_load(b2, force=(force, 0.0), at=(1.0, height), rate=(rate, 0.0))
     return sb.build()

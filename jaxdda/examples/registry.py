@@ -10,6 +10,9 @@ _EXAMPLES = {
     "paper-7.3": (paper.ring_in_frame, 2050, "a ring bouncing in a square frame (impacts, no lag)"),
     "paper-7.4": (paper.block_in_frame, 10000, "a block bouncing in a square frame (no rotation)"),
     "paper-7.5": (paper.disk_in_ring, 4000, "a disk sliding inside a ring: a frictionless pendulum"),
+    "paper-7.6": (paper.block_pull, 100, "a block pulled over a base with cohesion shared by two corners"),
+    "paper-7.7": (paper.disk_pull, 500, "a disk pulled over a frictional surface (rolling, slip)"),
+    "paper-7.8": (paper.cemented_pull, 100, "a block pulled off a cemented interface"),
 }
 
 
@@ -24,10 +27,11 @@ def _entry(name: str):
     return _EXAMPLES[name]
 
 
-def get(name: str, *, heavy: bool = False) -> Scene:
+def get(name: str, *, heavy: bool = False, **options) -> Scene:
     """The example scene ``name``. ``heavy=True``: fixed bodies as the paper built them
-    (free, 1e11 times denser, weightless) instead of with zero flexibility."""
-    return _entry(name)[0](heavy=heavy)
+    (free, 1e11 times denser, weightless) instead of with zero flexibility. ``options``
+    go to the example's factory (e.g. ``height=``, ``friction=``, ``rolling=`` of 7.7)."""
+    return _entry(name)[0](heavy=heavy, **options)
 
 
 def default_steps(name: str) -> int:

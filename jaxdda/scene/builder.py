@@ -10,11 +10,16 @@ import numpy as np
 
 from jaxdda.bodies import geometry
 from jaxdda.errors import SceneError
-from jaxdda.scene import validate
+from jaxdda.scene import cement, validate
 from jaxdda.scene.capacity import initial_capacities
-from jaxdda.types import DISK, KIND_NAMES, NDOF, POLYGON, RING, Model, Params, State, zeros_contact_memory
+from jaxdda.types import (DISK, KIND_NAMES, NDOF, NO_JOINT, POLYGON, RING, Model, Params, State,
+                          zeros_contact_memory)
 
 RIGID_PROJECTOR = np.diag([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
+# A deformable particle: eps_x = eps_y (eq. 4), the dofs span e0, e1, e2 and (e3 + e4) / sqrt 2.
+PARTICLE_PROJECTOR = RIGID_PROJECTOR + 0.5 * np.outer([0, 0, 0, 1, 1, 0], [0, 0, 0, 1, 1, 0])
+# The contact law of a material pair, with the defaults of the "default" material.
+CONTACT_LAW = {"friction": 0.0, "restitution": 1.0, "cohesion": 0.0, "rolling": 0.0, "tensile": 0.0}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -48,6 +53,10 @@ class _Body:
     fixed: bool
     material: str
     gravity: bool
+    moments: np.ndarray = None  # [int x^2, int y^2, int xy] dA about the centroid
+    young: float = 0.0  # 0: rigid
+    poisson: float = 0.0
+    plane_strain: bool = False
 
 
 class SceneBuilder:
@@ -55,54 +64,91 @@ class SceneBuilder:
 
     Units are SI (m, kg, s). Gravity acts on every body unless it is added with
     ``gravity=False``. A contact between two bodies of one material uses that material's
-    friction and restitution; a mixed pair uses the smaller of the two values unless an
-    interface is declared with ``set_interface``.
+    contact law (friction, restitution, cohesion, rolling, tensile); a mixed pair uses the
+    smaller of the two values of each unless an interface is declared with ``set_interface``.
     """
 
     def __init__(self, dt: float, gravity: Sequence[float] = (0.0, -9.81), *, tol: float = 1e-12,
-                 max_iter: int = 5000, margin: float | None = None, name: str = "scene"):
+                 max_iter: int = 5000, margin: float | None = None, dynamic: float = 1.0, name: str = "scene"):
         self.dt, self.gravity, self.tol, self.max_iter, self.margin, self.name = dt, gravity, tol, max_iter, margin, name
+        self.dynamic = dynamic
         self._bodies: list[_Body] = []
-        self._materials: dict[str, dict[str, float]] = {"default": {"friction": 0.0, "restitution": 1.0}}
+        self._materials: dict[str, dict[str, float]] = {"default": dict(CONTACT_LAW)}
+        self._loads: list[tuple[int, np.ndarray, np.ndarray, np.ndarray]] = []
         self._interfaces: dict[tuple[str, str], dict[str, float]] = {}
 
     # -- materials ---------------------------------------------------------------------
-    def add_material(self, name: str, friction: float = 0.0, restitution: float = 1.0) -> str:
-        """Declare (or redefine) a material: Coulomb friction mu >= 0, restitution e in [0, 1].
+    def add_material(self, name: str, friction: float = 0.0, restitution: float = 1.0, *, cohesion: float = 0.0,
+                     rolling: float = 0.0, tensile: float = 0.0) -> str:
+        """Declare (or redefine) a material and its contact law with itself.
 
-        The built-in "default" material is frictionless and perfectly elastic (e = 1).
+        friction: Coulomb coefficient mu >= 0 (eq. 19). restitution: Newton's e in [0, 1].
+        cohesion: c >= 0 (N), the cohesive shear strength of one contact interface, shared by
+        the two adjoint contacts of an edge-edge interface (eqs. 19, 42-45).
+        rolling: rolling resistance coefficient delta >= 0 (m) of contacts with a particle:
+        the rolling moment is bounded by delta times the normal force (eq. 55).
+        tensile: tensile strength t >= 0 (N) of a cemented interface: bodies of this material
+        touching at t = 0 are cemented; the joints of one interface share t (eqs. 63-73).
+        The built-in "default" material is frictionless, perfectly elastic (e = 1) and has
+        no cohesion, rolling resistance or cement.
         """
         if not isinstance(name, str) or not name:
             raise SceneError(f"material {name!r}: a material name must be a non-empty string")
-        _check_contact_law(f"material '{name}'", friction, restitution)
-        self._materials[name] = {"friction": float(friction), "restitution": float(restitution)}
+        law = {"friction": friction, "restitution": restitution, "cohesion": cohesion, "rolling": rolling,
+               "tensile": tensile}
+        _check_contact_law(f"material '{name}'", law)
+        self._materials[name] = {k: float(v) for k, v in law.items()}
         return name
 
-    def set_interface(self, material_a: str, material_b: str, *, friction: float | None = None,
-                      restitution: float | None = None) -> None:
-        """Contact law between two different materials (overrides the smaller-value rule)."""
+    def set_interface(self, material_a: str, material_b: str, **law: float) -> None:
+        """Contact law between two different materials (overrides the smaller-value rule).
+        Keywords: any of friction, restitution, cohesion, rolling, tensile."""
         for m in (material_a, material_b):
             if m not in self._materials:
                 raise SceneError(f"interface ({material_a}, {material_b}): unknown material '{m}'")
-        law = {k: v for k, v in (("friction", friction), ("restitution", restitution)) if v is not None}
-        _check_contact_law(f"interface ({material_a}, {material_b})", law.get("friction", 0.0),
-                           law.get("restitution", 1.0))
-        self._interfaces[tuple(sorted((material_a, material_b)))] = law
+        unknown = sorted(set(law) - set(CONTACT_LAW))
+        if unknown:
+            raise SceneError(f"interface ({material_a}, {material_b}): unknown field '{unknown[0]}' "
+                             f"(known: {', '.join(CONTACT_LAW)})")
+        law = {k: v for k, v in law.items() if v is not None}
+        _check_contact_law(f"interface ({material_a}, {material_b})", law)
+        self._interfaces[tuple(sorted((material_a, material_b)))] = {k: float(v) for k, v in law.items()}
+
+    # -- loads -------------------------------------------------------------------------
+    def add_load(self, body: int, force, at=None, rate=(0.0, 0.0)) -> int:
+        """A point load on ``body``: F(t) = force + rate * t (N, world frame), applied at the
+        material point that is at ``at`` at t = 0 (default: the centroid); the point moves
+        with the body, the direction stays fixed (eqs. 2, 13). Returns the load index."""
+        label = f"load {len(self._loads)}"
+        if isinstance(body, bool) or not isinstance(body, (int, np.integer)) or not 0 <= body < len(self._bodies):
+            raise SceneError(f"{label}: field 'body' must be the index of an added body, got {body!r}")
+        b = self._bodies[body]
+        point = b.center if at is None else self._point(label, "at", at)
+        self._loads.append((int(body), point - b.center, self._point(label, "force", force),
+                            self._point(label, "rate", rate)))
+        return len(self._loads) - 1
 
     # -- bodies ------------------------------------------------------------------------
     def add_disk(self, center, radius, density, velocity=(0.0, 0.0), angular_velocity=0.0, fixed=False,
-                 material="default", gravity=True) -> int:
-        """A rigid disk (paper Section 2, eq. 3). Returns its body index."""
+                 material="default", gravity=True, young=None, poisson=0.0, plane="stress") -> int:
+        """A disk (rigid: eq. 3; deformable: 4 dofs, eqs. 4-5). Returns its body index.
+        Deformable with ``young`` (E > 0, Pa) and ``poisson`` (-1 < nu < 0.5), in
+        ``plane`` "stress" (default) or "strain"; rigid when ``young`` is None.
+        """
         label = self._label(DISK)
         validate.check_positive(label, "radius", radius)
         r = float(radius)
         return self._add(_Body(DISK, self._point(label, "center", center), r, 0.0, np.zeros((0, 2)),
                                geometry.disk_area(r), geometry.disk_polar_moment(r), 0.0,
-                               np.zeros(2), 0.0, fixed, material, gravity), density, velocity, angular_velocity)
+                               np.zeros(2), 0.0, fixed, material, gravity, geometry.round_second_moments(r)),
+                         density, velocity, angular_velocity, (young, poisson, plane))
 
     def add_ring(self, center, inner_radius, outer_radius, density, velocity=(0.0, 0.0), angular_velocity=0.0,
-                 fixed=False, material="default", gravity=True) -> int:
-        """A rigid ring: material between ``inner_radius`` > 0 and ``outer_radius``."""
+                 fixed=False, material="default", gravity=True, young=None, poisson=0.0, plane="stress") -> int:
+        """A ring: material between ``inner_radius`` > 0 and ``outer_radius`` (a particle).
+        Deformable with ``young`` (E > 0, Pa) and ``poisson`` (-1 < nu < 0.5), in
+        ``plane`` "stress" (default) or "strain"; rigid when ``young`` is None.
+        """
         label = self._label(RING)
         validate.check_positive(label, "inner_radius", inner_radius)
         validate.check_positive(label, "outer_radius", outer_radius)
@@ -111,12 +157,16 @@ class SceneBuilder:
             raise SceneError(f"{label}: field 'inner_radius' ({ri}) must be smaller than 'outer_radius' ({ro})")
         return self._add(_Body(RING, self._point(label, "center", center), ro, ri, np.zeros((0, 2)),
                                geometry.ring_area(ro, ri), geometry.ring_polar_moment(ro, ri), 0.0,
-                               np.zeros(2), 0.0, fixed, material, gravity), density, velocity, angular_velocity)
+                               np.zeros(2), 0.0, fixed, material, gravity, geometry.round_second_moments(ro, ri)),
+                         density, velocity, angular_velocity, (young, poisson, plane))
 
     def add_polygon(self, vertices, density, velocity=(0.0, 0.0), angular_velocity=0.0, fixed=False,
-                    material="default", gravity=True) -> int:
-        """A rigid simple polygon (convex or concave, either orientation). ``velocity`` is
-        that of its centroid. Returns its body index."""
+                    material="default", gravity=True, young=None, poisson=0.0, plane="stress") -> int:
+        """A simple polygon (convex or concave, either orientation; rigid: eq. 3, deformable:
+        6 dofs, eqs. 6-7). ``velocity`` is that of its centroid. Returns its body index.
+        Deformable with ``young`` (E > 0, Pa) and ``poisson`` (-1 < nu < 0.5), in
+        ``plane`` "stress" (default) or "strain"; rigid when ``young`` is None.
+        """
         label = self._label(POLYGON)
         try:
             verts = np.asarray(vertices, dtype=float)
@@ -130,9 +180,11 @@ class SceneBuilder:
             raise SceneError(f"{label}: field 'vertices' is not a valid polygon: {problem}")
         verts = geometry.counter_clockwise(verts)
         area, centroid, polar = geometry.polygon_properties(verts)
-        return self._add(_Body(POLYGON, np.asarray(centroid, float), 0.0, 0.0, verts - centroid, float(area),
-                               float(polar), 0.0, np.zeros(2), 0.0, fixed, material, gravity),
-                         density, velocity, angular_velocity)
+        local = verts - centroid
+        return self._add(_Body(POLYGON, np.asarray(centroid, float), 0.0, 0.0, local, float(area),
+                               float(polar), 0.0, np.zeros(2), 0.0, fixed, material, gravity,
+                               geometry.polygon_second_moments(local)),
+                         density, velocity, angular_velocity, (young, poisson, plane))
 
     # -- build -------------------------------------------------------------------------
     def build(self) -> "Scene":
@@ -146,6 +198,9 @@ class SceneBuilder:
         validate.check_finite("scene", "gravity", g)
         validate.check_positive("scene", "tol", self.tol)
         validate.check_positive("scene", "max_iter", self.max_iter)
+        validate.check_finite("scene", "dynamic", self.dynamic)
+        if not 0.0 <= self.dynamic <= 1.0:
+            raise SceneError(f"scene: field 'dynamic' must be in [0, 1], got {self.dynamic}")
         labels = [self._label(b.kind, i) for i, b in enumerate(self._bodies)]
         shapes = [self._world_shape(b) for b in self._bodies]
         size = _scene_size(shapes)
@@ -158,7 +213,7 @@ class SceneBuilder:
 
         names = list(self._materials)
         mat_index = {m: k for k, m in enumerate(names)}
-        friction, restitution = self._contact_tables(names)
+        tables = self._contact_tables(names)
         n = len(self._bodies)
         v_max = max([len(b.local) for b in self._bodies] + [1])
         local = np.zeros((n, v_max, 2))
@@ -185,16 +240,31 @@ class SceneBuilder:
             bound_radius=jnp.asarray(bound),
             gravity_scale=jnp.asarray([1.0 if b.gravity else 0.0 for b in self._bodies]),
             material=jnp.asarray([mat_index[b.material] for b in self._bodies], jnp.int32),
-            dof_projector=jnp.asarray(np.where(fixed[:, None, None], 0.0, RIGID_PROJECTOR)),
+            second_moment=jnp.asarray(np.array([b.moments for b in self._bodies])),
+            plane_strain=jnp.asarray([b.plane_strain for b in self._bodies]),
+            dof_projector=jnp.asarray(np.array([_projector(b) for b in self._bodies])),
+            load_body=jnp.asarray([ld[0] for ld in self._loads], jnp.int32),
+            load_point=jnp.asarray(np.reshape([ld[1] for ld in self._loads], (-1, 2))),
+            joint_key=jnp.full((1,), NO_JOINT, jnp.int64), joint_a=jnp.zeros((1,), jnp.int32),
+            joint_b=jnp.zeros((1,), jnp.int32), joint_point=jnp.zeros((1, 2)),
             capacity=capacity, n_bodies=n, max_vertices=v_max)
         key, force = zeros_contact_memory(capacity.contacts)
         state = State(time=jnp.asarray(0.0), origin=jnp.asarray(centers), displacement=jnp.zeros((n, 2)),
-                      rotation=jnp.zeros(n),
-                      velocity=jnp.asarray(velocity), contact_key=key, contact_force=force)
+                      rotation=jnp.zeros(n), stretch=jnp.broadcast_to(jnp.eye(2), (n, 2, 2)), stress=jnp.zeros((n, 3)),
+                      velocity=jnp.asarray(velocity), contact_key=key, contact_force=force,
+                      joint_intact=jnp.zeros((1,), bool))
         params = Params(dt=jnp.asarray(float(self.dt)), gravity=jnp.asarray(g),
-                        density=jnp.asarray([b.density for b in self._bodies]), friction=jnp.asarray(friction),
-                        restitution=jnp.asarray(restitution), tol=jnp.asarray(float(self.tol)),
-                        max_iter=jnp.asarray(float(self.max_iter)), margin=jnp.asarray(margin))
+                        density=jnp.asarray([b.density for b in self._bodies]),
+                        young=jnp.asarray([b.young for b in self._bodies]),
+                        poisson=jnp.asarray([b.poisson for b in self._bodies]),
+                        **{field: jnp.asarray(table) for field, table in tables.items()},
+                        load_force=jnp.asarray(np.reshape([ld[2] for ld in self._loads], (-1, 2))),
+                        load_rate=jnp.asarray(np.reshape([ld[3] for ld in self._loads], (-1, 2))),
+                        dynamic=jnp.asarray(float(self.dynamic)),
+                        tol=jnp.asarray(float(self.tol)), max_iter=jnp.asarray(float(self.max_iter)),
+                        margin=jnp.asarray(margin))
+        if np.any(tables["tensile"] > 0):
+            model, state = cement.with_joints(model, state, params, tol=1e-9 * size)
         return Scene(model, state, params, tuple(labels), tuple(names), self.name)
 
     # -- helpers -----------------------------------------------------------------------
@@ -212,9 +282,18 @@ class SceneBuilder:
         validate.check_finite(label, field, p)
         return p
 
-    def _add(self, body: _Body, density, velocity, omega) -> int:
+    def _add(self, body: _Body, density, velocity, omega, elastic) -> int:
         label = self._label(body.kind)
         validate.check_positive(label, "density", density)
+        young, poisson, plane = elastic
+        if young is not None:
+            validate.check_positive(label, "young", young)
+            validate.check_finite(label, "poisson", poisson)
+            if not -1.0 < poisson < 0.5:
+                raise SceneError(f"{label}: field 'poisson' must be in (-1, 0.5), got {poisson}")
+            if plane not in ("stress", "strain"):
+                raise SceneError(f"{label}: field 'plane' must be \"stress\" or \"strain\", got {plane!r}")
+            body.young, body.poisson, body.plane_strain = float(young), float(poisson), plane == "strain"
         body.density = float(density)
         body.velocity = self._point(label, "velocity", velocity)
         validate.check_finite(label, "angular_velocity", omega)
@@ -230,16 +309,16 @@ class SceneBuilder:
         self._bodies.append(body)
         return len(self._bodies) - 1
 
-    def _contact_tables(self, names: list[str]):
+    def _contact_tables(self, names: list[str]) -> dict[str, np.ndarray]:
+        """(M, M) table per field of the contact law."""
         m = len(names)
-        friction, restitution = np.zeros((m, m)), np.zeros((m, m))
+        tables = {field: np.zeros((m, m)) for field in CONTACT_LAW}
         for i, a in enumerate(names):
             for j, b in enumerate(names):
                 law = self._interfaces.get(tuple(sorted((a, b))), {})
-                ma, mb = self._materials[a], self._materials[b]
-                friction[i, j] = law.get("friction", min(ma["friction"], mb["friction"]))
-                restitution[i, j] = law.get("restitution", min(ma["restitution"], mb["restitution"]))
-        return friction, restitution
+                for field, table in tables.items():
+                    table[i, j] = law.get(field, min(self._materials[a][field], self._materials[b][field]))
+        return tables
 
     @staticmethod
     def _world_shape(b: _Body):
@@ -250,15 +329,25 @@ class SceneBuilder:
         return ("polygon", b.local + b.center)
 
 
-def _check_contact_law(label: str, friction: float, restitution: float) -> None:
-    for field, value in (("friction", friction), ("restitution", restitution)):
+def _check_contact_law(label: str, law: dict) -> None:
+    for field, value in law.items():
         validate.check_finite(label, field, value)
         if np.ndim(value) != 0:
             raise SceneError(f"{label}: field '{field}' must be a number, got {value!r}")
-    if friction < 0:
-        raise SceneError(f"{label}: field 'friction' must be >= 0, got {friction}")
-    if not 0.0 <= restitution <= 1.0:
-        raise SceneError(f"{label}: field 'restitution' must be in [0, 1], got {restitution}")
+        if value < 0:
+            raise SceneError(f"{label}: field '{field}' must be >= 0, got {value}")
+    if law.get("restitution", 0.0) > 1.0:
+        raise SceneError(f"{label}: field 'restitution' must be in [0, 1], got {law['restitution']}")
+
+
+def _projector(b: _Body) -> np.ndarray:
+    """The body's active dof subspace: none when fixed, 3 rigid, 4 a deformable particle, 6
+    a deformable polygon."""
+    if b.fixed:
+        return np.zeros((NDOF, NDOF))
+    if b.young == 0.0:
+        return RIGID_PROJECTOR
+    return PARTICLE_PROJECTOR if b.kind != POLYGON else np.eye(NDOF)
 
 
 def _scene_size(shapes) -> float:

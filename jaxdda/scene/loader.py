@@ -13,12 +13,13 @@ from pathlib import Path
 from typing import Any
 
 from jaxdda.errors import SceneError
-from jaxdda.scene.builder import Scene, SceneBuilder
+from jaxdda.scene.builder import CONTACT_LAW, Scene, SceneBuilder
 
-TOP_KEYS = ("name", "dt", "gravity", "steps", "solver", "materials", "interfaces", "bodies")
+TOP_KEYS = ("name", "dt", "gravity", "steps", "solver", "materials", "interfaces", "bodies", "loads")
 SOLVER_KEYS = ("tol", "max_iter", "margin")
-MATERIAL_KEYS = ("friction", "restitution")
-INTERFACE_KEYS = ("materials", "friction", "restitution")
+MATERIAL_KEYS = tuple(CONTACT_LAW)
+INTERFACE_KEYS = ("materials",) + MATERIAL_KEYS
+LOAD_KEYS = ("body", "force", "at", "rate")
 
 # type -> (SceneBuilder method, required fields); every type also takes BODY_OPTIONAL.
 BODY_TYPES = {
@@ -98,6 +99,14 @@ def _build(data: Any) -> tuple[Scene, int | None]:
     _expect(bodies, list, "field 'bodies'", "a list")
     for i, body in enumerate(bodies):
         _add_body(sb, i, body)
+
+    loads = data.get("loads", [])
+    _expect(loads, list, "field 'loads'", "a list")
+    for k, load in enumerate(loads):
+        where = f"load {k}"
+        _expect(load, dict, where, "an object")
+        _check_keys(where, load, LOAD_KEYS, ("body", "force"))
+        _call(where, sb.add_load, **load)
     return _call("scene", sb.build), steps
 
 

@@ -13,7 +13,7 @@ from typing import Callable, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from jaxdda.solver.sets import coulomb_projection
+from jaxdda.solver.sets import ContactSets, project
 
 NU = 0.9  # accept a prediction when beta |F(y) - F(y~)| <= NU |y - y~|
 GROW = 0.3  # grow beta when that ratio falls below GROW
@@ -21,42 +21,46 @@ GAMMA = 1.9  # relaxation of the correction step, in (0, 2)
 
 
 class Solution(NamedTuple):
-    force: jax.Array  # (C, 2) normal and shear force (or impulse)
+    force: jax.Array  # (C, 3) normal force, shear force, rolling moment (or their impulses)
     iterations: jax.Array  # () int32
     residual: jax.Array  # () max |p - P(p - G/diag W)| relative to max |p|
     converged: jax.Array  # () bool
 
 
 def solve(apply_w: Callable[[jax.Array], jax.Array], w_diag: jax.Array, b: jax.Array,
-          mu: jax.Array, enabled: jax.Array, p0: jax.Array, tol: jax.Array,
+          sets: ContactSets, p0: jax.Array, tol: jax.Array,
           max_iter: jax.Array, force_scale: jax.Array = 0.0) -> Solution:
-    """Solve the contact QVI with Coulomb sets {p_n >= 0, |p_t| <= mu p_n}.
+    """Solve the contact QVI over the sets X(p) of ``solver.sets`` (eqs. 39, 58, 65).
 
     Args:
-      apply_w: p (C, 2) -> W p (C, 2).
-      w_diag: (C, 2) diagonal of W; contacts with a zero entry are disabled.
-      b: (C, 2) constant part of G (gap or velocity without contact forces).
-      mu: (C,) friction coefficient; enabled: (C,) bool; p0: (C, 2) warm start.
+      apply_w: p (C, 3) -> W p (C, 3).
+      w_diag: (C, 3) diagonal of W; contacts with a zero normal or shear entry are disabled.
+      b: (C, 3) constant part of G (gaps or velocities without contact forces).
+      sets: the constraint data; p0: (C, 3) warm start.
       tol: relative tolerance on the natural residual; max_iter: iteration cap.
       force_scale: the residual is measured relative to max(max |p|, force_scale), so
         forces far below the scene's own scale (round-off) need no iterations.
     """
-    enabled = enabled & jnp.all(w_diag > 0, -1)
-    scale = jnp.where(enabled[:, None], 1.0 / jnp.sqrt(jnp.where(w_diag > 0, w_diag, 1.0)), 0.0)
-    ratio = mu * scale[:, 0] / jnp.where(scale[:, 1] > 0, scale[:, 1], 1.0)
+    enabled = sets.enabled & jnp.all(w_diag[:, :2] > 0, -1)
+    rolls = enabled & (w_diag[:, 2] > 0) & (sets.rolling > 0)
+    sets = sets._replace(enabled=enabled, rolling=jnp.where(rolls, sets.rolling, 0.0))
+    # A zero scale takes a component out of the iteration altogether (a moment that must
+    # stay 0 would otherwise distort the step length through its field entries).
+    active = jnp.stack([enabled, enabled, rolls], -1)
+    scale = jnp.where(active, 1.0 / jnp.sqrt(jnp.where(w_diag > 0, w_diag, 1.0)), 0.0)
 
-    def project(z, normal=None):
-        return coulomb_projection(z, ratio, enabled, normal)
+    def proj(z, normal=None):
+        return project(z, scale, sets, None if normal is None else scale[:, 0] * normal)
 
     def field(y):  # F(y) = S (W S y + b)
         return scale * (apply_w(scale * y) + b)
 
     def residual(y, fy):
-        r = scale * (y - project(y - fy))
+        r = scale * (y - proj(y - fy))
         size = jnp.maximum(jnp.max(jnp.abs(scale * y), initial=0.0), force_scale)
         return jnp.max(jnp.abs(r), initial=0.0) / jnp.where(size > 0, size, 1.0)
 
-    y0 = project(jnp.where(enabled[:, None], p0 / jnp.where(scale > 0, scale, 1.0), 0.0))
+    y0 = proj(jnp.where(enabled[:, None], p0 / jnp.where(scale > 0, scale, 1.0), 0.0))
     f0 = field(y0)
 
     def cond(carry):
@@ -67,7 +71,7 @@ def solve(apply_w: Callable[[jax.Array], jax.Array], w_diag: jax.Array, b: jax.A
         y, fy, beta, k, _ = carry
         # X(p) is frozen at the current iterate's normal force for this iteration, so
         # the prediction and the correction project onto one convex set.
-        yt = project(y - beta * fy, y[:, 0])
+        yt = proj(y - beta * fy, y[:, 0])
         ft = field(yt)
         dy, df = y - yt, fy - ft
         ny = jnp.sqrt(jnp.sum(dy * dy))
@@ -76,7 +80,7 @@ def solve(apply_w: Callable[[jax.Array], jax.Array], w_diag: jax.Array, b: jax.A
         d = dy - beta * df
         dd = jnp.sum(d * d)
         alpha = jnp.sum(dy * d) / jnp.where(dd > 0, dd, 1.0)
-        y_new = project(y - GAMMA * alpha * beta * ft, y[:, 0])
+        y_new = proj(y - GAMMA * alpha * beta * ft, y[:, 0])
         y_new = jnp.where(accept, y_new, y)
         f_new = jnp.where(accept, field(y_new), fy)
         beta = jnp.where(accept, jnp.where(ratio_r < GROW, beta * 1.5, beta),

@@ -48,3 +48,17 @@ def test_nothing_moves(run):
     assert np.abs(run.centroid - run.centroid[0]).max() < 1e-9
     assert np.abs(run.rotation).max() < 1e-9
     assert run.info.converged.all()
+
+
+def test_stiff_deformable_blocks_give_the_rigid_answer():
+    # E = 1e14, nu = 0.45 (plane stress), as the paper; run as a static analysis.
+    run = jaxdda.simulate(jaxdda.examples.get("paper-7.2", young=1e14), 100)
+    points, forces = contacts_at_end(run, 3, BASE)
+    order = np.argsort(points[:, 0])
+    f1, f2 = forces[order, 1]
+    assert abs(f1 - W / 2) <= PAPER_F1_ERROR
+    assert abs(f2 - 7 * W / 2) <= PAPER_F2_ERROR
+    # What moves is the elastic settlement: at most the stack's height times its largest strain.
+    strain = np.abs(run.stress[-1, :4]).max() / 1e14
+    assert np.abs(run.centroid - run.centroid[0]).max() <= 40.0 * strain
+    assert np.abs(run.rotation).max() < 1e-12

@@ -1,0 +1,100 @@
+"""Deformable bodies: consistent mass, stiffness and stress of the linear displacement
+field (paper eqs. 4-7, 17-18, Appendix A).
+
+A body's current shape is the affine image ``x = c + R(theta) S X`` of its reference shape
+X (centroid at 0, rotation 0): ``S`` (2 x 2) is the accumulated stretch, I for a rigid
+body. A deformable particle keeps eps_x = eps_y (eq. 4): its dof projector is onto span(e0,
+e1, e2, (e3 + e4)/sqrt 2), so one 6-dof code path gives the paper's 4-dof matrices.
+Strains are [eps_x, eps_y, gamma_xy] (engineering shear), stresses [s_x, s_y, t_xy].
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+
+from jaxdda.bodies.shape import rotation_matrix
+
+
+def elastic_matrix(young: jax.Array, poisson: jax.Array, plane_strain: jax.Array) -> jax.Array:
+    """(N, 3, 3) D with stress = D strain: plane stress E/(1-v^2)[[1,v,0],[v,1,0],[0,0,(1-v)/2]]
+    (eq. A.3) or plane strain E/((1+v)(1-2v))[[1-v,v,0],[v,1-v,0],[0,0,(1-2v)/2]]."""
+    v = poisson
+    strain_ = plane_strain.astype(young.dtype)
+    # Plane strain is plane stress with E' = E / (1 - v^2) and v' = v / (1 - v).
+    e = young / jnp.where(strain_ > 0, 1.0 - v * v, 1.0)
+    v = jnp.where(strain_ > 0, v / (1.0 - v), v)
+    c = e / (1.0 - v * v)
+    zero = jnp.zeros_like(c)
+    rows = [jnp.stack([c, c * v, zero], -1), jnp.stack([c * v, c, zero], -1),
+            jnp.stack([zero, zero, 0.5 * c * (1.0 - v)], -1)]
+    return jnp.stack(rows, -2)
+
+
+def current_moments(second_moment: jax.Array, rotation: jax.Array, stretch: jax.Array) -> jax.Array:
+    """(N, 2, 2) [[Ixx, Ixy], [Ixy, Iyy]] of the current shape (integrals of x x^T dA over the
+    reference area, i.e. per unit mass / density), from the reference ones (N, 3)."""
+    ixx, iyy, ixy = second_moment[:, 0], second_moment[:, 1], second_moment[:, 2]
+    ref = jnp.stack([jnp.stack([ixx, ixy], -1), jnp.stack([ixy, iyy], -1)], -2)
+    a = rotation_matrix(rotation) @ stretch
+    return a @ ref @ jnp.swapaxes(a, -1, -2)
+
+
+def consistent_mass(density: jax.Array, area: jax.Array, moments: jax.Array) -> jax.Array:
+    """(N, 6, 6) integral of rho T^T T dA with T of eq. 7 about the centroid (Appendix A.5).
+
+    For a rigid body (dofs 0-2) it is diag(m, m, I); for a particle on its 4-dof subspace
+    it is the matrix of eqs. A.9-A.10.
+    """
+    ixx, iyy, ixy = moments[:, 0, 0], moments[:, 1, 1], moments[:, 0, 1]
+    z = jnp.zeros_like(area)
+    rows = [
+        [area, z, z, z, z, z],
+        [z, area, z, z, z, z],
+        [z, z, ixx + iyy, -ixy, ixy, 0.5 * (ixx - iyy)],
+        [z, z, -ixy, ixx, z, 0.5 * ixy],
+        [z, z, ixy, z, iyy, 0.5 * ixy],
+        [z, z, 0.5 * (ixx - iyy), 0.5 * ixy, 0.5 * ixy, 0.25 * (ixx + iyy)],
+    ]
+    m = jnp.stack([jnp.stack(r, -1) for r in rows], -2)
+    return density[:, None, None] * m
+
+
+def stiffness(d_matrix: jax.Array, volume: jax.Array) -> jax.Array:
+    """(N, 6, 6) integral of B^T D B dA: V D on the strain dofs (eq. A.1; B is constant)."""
+    k = jnp.zeros(d_matrix.shape[:-2] + (6, 6))
+    return k.at[:, 3:, 3:].set(volume[:, None, None] * d_matrix)
+
+
+def stress_load(stress: jax.Array, volume: jax.Array) -> jax.Array:
+    """(N, 6) -integral of B^T sigma dA: the load of the stress already carried (eq. A.11)."""
+    return jnp.concatenate([jnp.zeros(stress.shape[:-1] + (3,)), -volume[:, None] * stress], -1)
+
+
+def strain_tensor(strain: jax.Array) -> jax.Array:
+    """(N, 2, 2) [[eps_x, gamma/2], [gamma/2, eps_y]] from (N, 3) strain dofs."""
+    ex, ey, g = strain[..., 0], strain[..., 1], 0.5 * strain[..., 2]
+    return jnp.stack([jnp.stack([ex, g], -1), jnp.stack([g, ey], -1)], -2)
+
+
+def updated_stretch(stretch: jax.Array, rotation: jax.Array, turn: jax.Array, strain: jax.Array) -> jax.Array:
+    """S after a step: x - c -> (R(turn) + E)(x - c) (post-adjusted field, eqs. 17-18), so
+    R(theta + turn) S' = (R(turn) + E) R(theta) S."""
+    e = strain_tensor(strain)
+    back = rotation_matrix(-(rotation + turn))
+    return stretch + back @ e @ rotation_matrix(rotation) @ stretch
+
+
+def current_shape(model, stretch: jax.Array):
+    """The model with each body's local geometry in its current shape S X (vertices, load
+    points, radii): contacts found in it move rigidly plus the step's strain increment.
+    Exact (unchanged) for rigid bodies, whose S is I."""
+    scale = jnp.sqrt(jnp.abs(jnp.linalg.det(stretch)))  # a particle's S is a rotation-scaling
+    norm = jnp.linalg.norm(stretch, ord=2, axis=(-2, -1))
+    return dataclasses.replace(
+        model,
+        local_vertices=jnp.einsum("nij,nvj->nvi", stretch, model.local_vertices),
+        load_point=jnp.einsum("lij,lj->li", stretch[model.load_body], model.load_point),
+        radius=model.radius * scale, inner_radius=model.inner_radius * scale,
+        bound_radius=model.bound_radius * jnp.maximum(norm, 1.0))
