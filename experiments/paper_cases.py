@@ -1,4 +1,4 @@
-"""Measure cases 7.1-7.5 against their closed forms, beside the paper's own errors.
+"""Measure cases 7.1-7.8 against their closed forms, beside the paper's own errors.
 
     python experiments/paper_cases.py [--out experiments/results/paper_cases.json]
 
@@ -20,8 +20,8 @@ import jaxdda
 G_ACC = 10.0
 
 
-def timed(name: str, steps: int, heavy: bool = False):
-    scene = jaxdda.examples.get(name, heavy=heavy)
+def timed(name: str, steps: int, heavy: bool = False, **options):
+    scene = jaxdda.examples.get(name, heavy=heavy, **options)
     jaxdda.simulate(scene, steps)  # compile
     t0 = time.perf_counter()
     run = jaxdda.simulate(scene, steps)
@@ -42,8 +42,8 @@ def case_7_1(heavy):
             "drift (m)": float(np.abs(run.centroid[:, :3] - run.centroid[0, :3]).max())}, run, wall
 
 
-def case_7_2(heavy):
-    run, wall = timed("paper-7.2", 100, heavy)
+def case_7_2(heavy, **options):
+    run, wall = timed("paper-7.2", 100, heavy, **options)
     w = 4.0e6
     c = run.info.contacts
     sel = c.valid[-1] & (c.a[-1] == 3) & (c.b[-1] == 4)
@@ -80,6 +80,64 @@ def case_7_5(heavy):
             "energy drift (rel)": float(np.abs(energy - energy[0]).max() / (m * G_ACC * 60))}, run, wall
 
 
+def corner_forces(run, a, b, k=-1):
+    c = run.info.contacts
+    sel = c.valid[k] & (c.a[k] == a) & (c.b[k] == b)
+    return c.force[k][sel][np.argsort(c.point[k][sel][:, 0])], c.moment[k][sel]
+
+
+def case_7_6(heavy):
+    run, wall = timed("paper-7.6", 100, heavy)
+    (rear, front), _ = corner_forces(run, 0, 1)
+    x = run.centroid[:, 0, 0] - run.centroid[0, 0, 0]
+    return {"|Fn1 - 4600| (N)": abs(rear[1] - 4600), "|Fn2 - 5400| (N)": abs(front[1] - 5400),
+            "|Fs + 400| (N)": abs(rear[0] + front[0] + 400), "paper": 1e-5,
+            "|x - 0.3 t^2| (m)": float(np.abs(x - 0.3 * run.time ** 2).max()),
+            "rotation (rad)": float(np.abs(run.rotation[:, 0]).max())}, run, wall
+
+
+def case_7_7_rolling():
+    m, f = 1000 * math.pi, 1000.0
+    worst_n = worst_s = worst_m = 0.0
+    for d in (0.0, 0.5, 1.0, 1.5, 2.0):
+        run, wall = timed("paper-7.7", 20, height=d)
+        for k in range(run.steps):
+            (force,), _ = corner_forces(run, 0, 1, k)
+            lever = 1 + (d - 1) * math.cos(run.rotation[k, 0])
+            worst_n = max(worst_n, abs(force[1] - 10 * m))
+            worst_s = max(worst_s, abs(force[0] - f * (lever - 1.5) / 1.5))
+        held, _ = timed("paper-7.7", 20, height=d, rolling=1.0)
+        _, moment = corner_forces(held, 0, 1)
+        worst_m = max(worst_m, abs(moment[0] - f * d))
+    return {"|Fn - G| (N)": worst_n, "paper Fn": 0.00361, "|Fs - F(d-1.5)/1.5| (N)": worst_s, "paper Fs": 1e-5,
+            "|Mr - F d| (N m)": worst_m, "paper Mr": 8.6e-4}, run, wall
+
+
+def case_7_7_motion():
+    m, f, g = 1000 * math.pi, 1000.0, 10 * 1000 * math.pi
+    cases = {"I": (10.0, 0.0, f / (1.5 * m), -f / (1.5 * m)), "II": (0.005, 0.005, (f - 0.005 * g) / m, 0.0),
+             "II'": (0.005, 0.0025, (f - 0.005 * g) / m, -0.0025 * g / (0.5 * m)),
+             "III": (0.005, 0.0, (f - 0.005 * g) / m, -0.005 * g / (0.5 * m))}
+    out = {}
+    for label, (mu, delta, accel, alpha) in cases.items():
+        run, wall = timed("paper-7.7", 500, height=1.0, friction=mu, rolling=delta)
+        out[f"{label} |x(5) - x*| (m)"] = abs(run.centroid[-1, 0, 0] - 12.5 * accel)
+        out[f"{label} |w(5) - w*| (rad/s)"] = abs(run.velocity[-1, 0, 2] - 5 * alpha)
+    return out, run, wall
+
+
+def case_7_8():
+    worst = 0.0
+    for h in (0.0, 0.5, 1.0):
+        run, wall = timed("paper-7.8", 50, height=h)
+        top = int(np.argmax(np.asarray(run.scene.model.joint_point)[:, 1]))
+        worst = max(worst, abs(run.joint_tension[-1, top] - 500 * (1 + h)),
+                    abs(run.joint_tension[-1, 1 - top] - 500 * (1 - h)))
+    ramp, _ = timed("paper-7.8", 260, force=0.0, rate=900.0)
+    return {"|P - F(H +- h)/2H| (N)": worst, "paper": 1e-5,
+            "break step (ramp 900 N/s)": int(np.argmax(ramp.joint_broken.all(1)) + 1), "closed form": 223}, run, wall
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--out", default="experiments/results/paper_cases.json")
@@ -87,9 +145,13 @@ def main() -> None:
     rows = []
     for label, fn in [("7.1 fixed base", lambda: case_7_1(False)), ("7.1 heavy base", lambda: case_7_1(True)),
                       ("7.2 fixed base", lambda: case_7_2(False)), ("7.2 heavy base", lambda: case_7_2(True)),
+                      ("7.2 E = 1e14", lambda: case_7_2(False, young=1e14)),
                       ("7.3 ring in frame", lambda: case_billiard("paper-7.3", 2050, 17.0)),
                       ("7.4 block in frame", lambda: case_billiard("paper-7.4", 10000, 50.0)),
-                      ("7.5 fixed ring", lambda: case_7_5(False)), ("7.5 heavy ring", lambda: case_7_5(True))]:
+                      ("7.5 fixed ring", lambda: case_7_5(False)), ("7.5 heavy ring", lambda: case_7_5(True)),
+                      ("7.6 fixed base", lambda: case_7_6(False)), ("7.6 heavy base", lambda: case_7_6(True)),
+                      ("7.7 rolling", case_7_7_rolling), ("7.7 motion", case_7_7_motion),
+                      ("7.8 cement", case_7_8)]:
         figures, run, wall = fn()
         figures.update({"case": label, "steps": run.steps, "wall s": wall,
                         "max PC iterations": int(run.info.iterations.max()),

@@ -16,7 +16,8 @@ SCENE = {
     "gravity": [0.0, -9.81],
     "steps": 3,
     "solver": {"tol": 1e-10, "max_iter": 300, "margin": None},
-    "materials": {"rock": {"friction": 0.5, "restitution": 0.2}, "steel": {"friction": 0.3}},
+    "materials": {"rock": {"friction": 0.5, "restitution": 0.2, "cohesion": 100.0, "tensile": 50.0},
+                  "steel": {"friction": 0.3, "rolling": 0.01}},
     "interfaces": [{"materials": ["rock", "steel"], "friction": 0.4, "restitution": 0.1}],
     "bodies": [
         {"type": "polygon", "vertices": [[-10, -1], [10, -1], [10, 0], [-10, 0]], "density": 2000,
@@ -24,8 +25,10 @@ SCENE = {
         {"type": "disk", "center": [-4, 1.5], "radius": 1.0, "density": 1000, "velocity": [1.0, 0.0],
          "angular_velocity": 0.5, "material": "steel"},
         {"type": "ring", "center": [0, 2], "inner_radius": 0.5, "outer_radius": 1.5, "density": 1500},
-        {"type": "polygon", "vertices": [[3, 0.5], [5, 0.5], [4, 2]], "density": 2500, "gravity": False},
+        {"type": "polygon", "vertices": [[3, 0.5], [5, 0.5], [4, 2]], "density": 2500, "gravity": False,
+         "young": 1e9, "poisson": 0.2, "plane": "strain"},
     ],
+    "loads": [{"body": 1, "force": [10.0, 0.0], "at": [-4, 2.5], "rate": [0.0, 1.0]}],
 }
 
 
@@ -54,6 +57,12 @@ def test_round_trip(tmp_path):
     assert float(scene.params.dt) == 0.001 and float(scene.params.tol) == 1e-10
     np.testing.assert_allclose(np.asarray(scene.state.velocity)[1, :3], [1.0, 0.0, 0.5])
     np.testing.assert_allclose(np.asarray(scene.model.inner_radius)[2], 0.5)
+    assert np.asarray(scene.params.cohesion)[mat["rock"], mat["rock"]] == 100.0
+    assert np.asarray(scene.params.tensile)[mat["rock"], mat["rock"]] == 50.0
+    assert np.asarray(scene.params.rolling)[mat["steel"], mat["steel"]] == 0.01
+    assert float(scene.params.young[3]) == 1e9 and bool(scene.model.plane_strain[3])
+    np.testing.assert_allclose(np.asarray(scene.model.load_point), [[0.0, 1.0]])
+    np.testing.assert_allclose(np.asarray(scene.params.load_rate), [[0.0, 1.0]])
 
 
 def test_defaults_and_name_from_file(tmp_path):
@@ -94,7 +103,13 @@ def test_defaults_and_name_from_file(tmp_path):
     (lambda d: d["solver"].update(margin="x"), "solver: field 'margin' must be a number or null"),
     (lambda d: d["interfaces"][0].update(restitution=True), "interface 0: field 'restitution' must be a number"),
     (lambda d: d.update(dt=0), "field 'dt' must be > 0"),
-    (lambda d: d.update(bodies=[]), "no bodies"),
+    (lambda d: d.update(bodies=[], loads=[]), "no bodies"),
+    (lambda d: d["materials"]["rock"].update(cohesion=-1), "material 'rock': field 'cohesion' must be >= 0"),
+    (lambda d: d["bodies"][3].update(poisson=0.5), "body 3 (polygon): field 'poisson'"),
+    (lambda d: d["bodies"][3].update(young=0), "body 3 (polygon): field 'young' must be > 0"),
+    (lambda d: d["loads"][0].update(point=[0, 0]), "load 0: unknown field 'point'"),
+    (lambda d: d["loads"][0].update(body=9), "load 0: field 'body'"),
+    (lambda d: d["loads"][0].pop("force"), "load 0: missing field 'force'"),
 ])
 def test_errors_name_where(edit, expected):
     with pytest.raises(SceneError) as err:

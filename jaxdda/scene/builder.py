@@ -57,6 +57,7 @@ class _Body:
     young: float = 0.0  # 0: rigid
     poisson: float = 0.0
     plane_strain: bool = False
+    stress: np.ndarray = None  # initial [sigma_x, sigma_y, tau_xy]
 
 
 class SceneBuilder:
@@ -130,10 +131,11 @@ class SceneBuilder:
 
     # -- bodies ------------------------------------------------------------------------
     def add_disk(self, center, radius, density, velocity=(0.0, 0.0), angular_velocity=0.0, fixed=False,
-                 material="default", gravity=True, young=None, poisson=0.0, plane="stress") -> int:
+                 material="default", gravity=True, young=None, poisson=0.0, plane="stress", stress=None) -> int:
         """A disk (rigid: eq. 3; deformable: 4 dofs, eqs. 4-5). Returns its body index.
         Deformable with ``young`` (E > 0, Pa) and ``poisson`` (-1 < nu < 0.5), in
-        ``plane`` "stress" (default) or "strain"; rigid when ``young`` is None.
+        ``plane`` "stress" (default) or "strain", with an initial ``stress`` (sigma_x, sigma_y,
+        tau_xy) (eq. A.11, default 0); rigid when ``young`` is None.
         """
         label = self._label(DISK)
         validate.check_positive(label, "radius", radius)
@@ -141,13 +143,14 @@ class SceneBuilder:
         return self._add(_Body(DISK, self._point(label, "center", center), r, 0.0, np.zeros((0, 2)),
                                geometry.disk_area(r), geometry.disk_polar_moment(r), 0.0,
                                np.zeros(2), 0.0, fixed, material, gravity, geometry.round_second_moments(r)),
-                         density, velocity, angular_velocity, (young, poisson, plane))
+                         density, velocity, angular_velocity, (young, poisson, plane, stress))
 
     def add_ring(self, center, inner_radius, outer_radius, density, velocity=(0.0, 0.0), angular_velocity=0.0,
-                 fixed=False, material="default", gravity=True, young=None, poisson=0.0, plane="stress") -> int:
+                 fixed=False, material="default", gravity=True, young=None, poisson=0.0, plane="stress", stress=None) -> int:
         """A ring: material between ``inner_radius`` > 0 and ``outer_radius`` (a particle).
         Deformable with ``young`` (E > 0, Pa) and ``poisson`` (-1 < nu < 0.5), in
-        ``plane`` "stress" (default) or "strain"; rigid when ``young`` is None.
+        ``plane`` "stress" (default) or "strain", with an initial ``stress`` (sigma_x, sigma_y,
+        tau_xy) (eq. A.11, default 0); rigid when ``young`` is None.
         """
         label = self._label(RING)
         validate.check_positive(label, "inner_radius", inner_radius)
@@ -158,14 +161,15 @@ class SceneBuilder:
         return self._add(_Body(RING, self._point(label, "center", center), ro, ri, np.zeros((0, 2)),
                                geometry.ring_area(ro, ri), geometry.ring_polar_moment(ro, ri), 0.0,
                                np.zeros(2), 0.0, fixed, material, gravity, geometry.round_second_moments(ro, ri)),
-                         density, velocity, angular_velocity, (young, poisson, plane))
+                         density, velocity, angular_velocity, (young, poisson, plane, stress))
 
     def add_polygon(self, vertices, density, velocity=(0.0, 0.0), angular_velocity=0.0, fixed=False,
-                    material="default", gravity=True, young=None, poisson=0.0, plane="stress") -> int:
+                    material="default", gravity=True, young=None, poisson=0.0, plane="stress", stress=None) -> int:
         """A simple polygon (convex or concave, either orientation; rigid: eq. 3, deformable:
         6 dofs, eqs. 6-7). ``velocity`` is that of its centroid. Returns its body index.
         Deformable with ``young`` (E > 0, Pa) and ``poisson`` (-1 < nu < 0.5), in
-        ``plane`` "stress" (default) or "strain"; rigid when ``young`` is None.
+        ``plane`` "stress" (default) or "strain", with an initial ``stress`` (sigma_x, sigma_y,
+        tau_xy) (eq. A.11, default 0); rigid when ``young`` is None.
         """
         label = self._label(POLYGON)
         try:
@@ -184,7 +188,7 @@ class SceneBuilder:
         return self._add(_Body(POLYGON, np.asarray(centroid, float), 0.0, 0.0, local, float(area),
                                float(polar), 0.0, np.zeros(2), 0.0, fixed, material, gravity,
                                geometry.polygon_second_moments(local)),
-                         density, velocity, angular_velocity, (young, poisson, plane))
+                         density, velocity, angular_velocity, (young, poisson, plane, stress))
 
     # -- build -------------------------------------------------------------------------
     def build(self) -> "Scene":
@@ -250,7 +254,8 @@ class SceneBuilder:
             capacity=capacity, n_bodies=n, max_vertices=v_max)
         key, force = zeros_contact_memory(capacity.contacts)
         state = State(time=jnp.asarray(0.0), origin=jnp.asarray(centers), displacement=jnp.zeros((n, 2)),
-                      rotation=jnp.zeros(n), stretch=jnp.broadcast_to(jnp.eye(2), (n, 2, 2)), stress=jnp.zeros((n, 3)),
+                      rotation=jnp.zeros(n), stretch=jnp.broadcast_to(jnp.eye(2), (n, 2, 2)),
+                      stress=jnp.asarray(np.array([b.stress for b in self._bodies])),
                       velocity=jnp.asarray(velocity), contact_key=key, contact_force=force,
                       joint_intact=jnp.zeros((1,), bool))
         params = Params(dt=jnp.asarray(float(self.dt)), gravity=jnp.asarray(g),
@@ -285,7 +290,15 @@ class SceneBuilder:
     def _add(self, body: _Body, density, velocity, omega, elastic) -> int:
         label = self._label(body.kind)
         validate.check_positive(label, "density", density)
-        young, poisson, plane = elastic
+        young, poisson, plane, stress = elastic
+        body.stress = np.zeros(3)
+        if stress is not None:
+            if young is None:
+                raise SceneError(f"{label}: field 'stress' needs a deformable body (give 'young')")
+            body.stress = np.asarray(stress, float) if np.shape(stress) == (3,) else None
+            if body.stress is None:
+                raise SceneError(f"{label}: field 'stress' must be (sigma_x, sigma_y, tau_xy), got {stress!r}")
+            validate.check_finite(label, "stress", body.stress)
         if young is not None:
             validate.check_positive(label, "young", young)
             validate.check_finite(label, "poisson", poisson)

@@ -16,7 +16,7 @@ from jaxdda.errors import SceneError
 from jaxdda.scene.builder import CONTACT_LAW, Scene, SceneBuilder
 
 TOP_KEYS = ("name", "dt", "gravity", "steps", "solver", "materials", "interfaces", "bodies", "loads")
-SOLVER_KEYS = ("tol", "max_iter", "margin")
+SOLVER_KEYS = ("tol", "max_iter", "margin", "dynamic")
 MATERIAL_KEYS = tuple(CONTACT_LAW)
 INTERFACE_KEYS = ("materials",) + MATERIAL_KEYS
 LOAD_KEYS = ("body", "force", "at", "rate")
@@ -27,7 +27,7 @@ BODY_TYPES = {
     "ring": ("add_ring", ("center", "inner_radius", "outer_radius", "density")),
     "polygon": ("add_polygon", ("vertices", "density")),
 }
-BODY_OPTIONAL = ("velocity", "angular_velocity", "fixed", "material", "gravity")
+BODY_OPTIONAL = ("velocity", "angular_velocity", "fixed", "material", "gravity", "young", "poisson", "plane", "stress")
 BOOLEAN_FIELDS = ("fixed", "gravity")  # bool("false") is True: insist on JSON true/false
 
 

@@ -20,9 +20,9 @@ def test_contact_forces_match_statics(run):
     f_top_on_middle = run.force_between(2, 1)[-1]
     f_middle_on_bottom = run.force_between(1, 0)[-1]
     f_bottom_on_base = run.force_between(0, 3)[-1]
-    np.testing.assert_allclose(f_top_on_middle, [0.0, -G], atol=PAPER_ERROR)
-    np.testing.assert_allclose(f_middle_on_bottom, [0.0, -2 * G], atol=PAPER_ERROR)
-    np.testing.assert_allclose(f_bottom_on_base, [0.0, -3 * G], atol=PAPER_ERROR)
+    np.testing.assert_allclose(f_top_on_middle, [0.0, -G], atol=PAPER_ERROR, rtol=0)
+    np.testing.assert_allclose(f_middle_on_bottom, [0.0, -2 * G], atol=PAPER_ERROR, rtol=0)
+    np.testing.assert_allclose(f_bottom_on_base, [0.0, -3 * G], atol=PAPER_ERROR, rtol=0)
     # action and reaction
     np.testing.assert_allclose(run.force_between(1, 2), -run.force_between(2, 1))
 
