@@ -11,7 +11,7 @@ from jaxdda.contact.adjoint import slots_per_pair
 from jaxdda.contact.broadphase import compact, grid_pairs
 from jaxdda.contact.kinematics import gap_frame
 from jaxdda.contact.narrowphase import particle_particle, particle_polygon, polygon_polygon
-from jaxdda.types import POLYGON, Contacts, Model
+from jaxdda.types import POLYGON, Model
 
 
 def world_vertices(model: Model, centroid: jax.Array, rotation: jax.Array) -> jax.Array:
