@@ -46,7 +46,7 @@ def impact_time(gap: jax.Array, vn: jax.Array, an: jax.Array, dt: jax.Array):
     Closed contacts (gap <= 0) hit at t = 0. Uses the cancellation-free root 2 g / (-v + sqrt(.)).
     """
     disc = vn * vn - 2.0 * an * gap
-    denom = -vn + jnp.sqrt(jnp.maximum(disc, 0.0))
+    denom = -vn + jnp.where(disc > 0, jnp.sqrt(jnp.where(disc > 0, disc, 1.0)), 0.0)  # no NaN gradient at 0
     root_ok = (disc >= 0) & (denom > 0)
     t = jnp.where(root_ok, 2.0 * gap / jnp.where(root_ok, denom, 1.0), jnp.inf)
     t = jnp.where(gap <= 0, 0.0, t)

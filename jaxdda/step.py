@@ -28,14 +28,17 @@ def _warm_start(prev_key: jax.Array, prev_force: jax.Array, key: jax.Array) -> j
     return jnp.where(found[:, None], prev_force[idx], 0.0)
 
 
-def _flexibility(jac: jax.Array, c: Contacts, inv: jax.Array, n_bodies: int):
-    """W = J inv J^T as a function, and its diagonal (C, 2)."""
-    def apply_w(p):
-        return apply_jacobian(jac, c, matvec(inv, apply_jacobian_t(jac, c, p, n_bodies)))
+def _apply_w(operand, p: jax.Array) -> jax.Array:
+    """W p = J inv J^T p for operand (jac, contacts, inv): the contact flexibility."""
+    jac, c, inv = operand
+    return apply_jacobian(jac, c, matvec(inv, apply_jacobian_t(jac, c, p, inv.shape[0])))
 
+
+def _flexibility(jac: jax.Array, c: Contacts, inv: jax.Array):
+    """The operand of ``_apply_w`` for W = J inv J^T, and W's diagonal (C, 3)."""
     diag = (jnp.einsum("cij,cjk,cik->ci", jac[:, 0], inv[c.a], jac[:, 0])
             + jnp.einsum("cij,cjk,cik->ci", jac[:, 1], inv[c.b], jac[:, 1]))
-    return apply_w, diag
+    return (jac, c, inv), diag
 
 
 def detection_reach(model: Model, state: State, params: Params) -> tuple[jax.Array, jax.Array]:
@@ -54,18 +57,24 @@ def detection_reach(model: Model, state: State, params: Params) -> tuple[jax.Arr
 
 
 def _contact_sets(model: Model, state: State, params: Params, c: Contacts, normal: jax.Array):
-    """The constraint data of this step's contacts, and which are intact cemented joints."""
+    """The constraint data of this step's contacts, and which are cemented joints (not
+    broken). A joint's strength is t times its integrity; adjoint joints share the
+    smaller of their two integrities (one budget per pair, as ``solver.sets`` needs)."""
     mat_a, mat_b = model.material[c.a], model.material[c.b]
     joint, is_joint = lookup(model.joint_key, c.key)
-    cemented = c.valid & is_joint & state.joint_intact[joint]
+    integrity = jnp.where(c.valid & is_joint, state.joint_integrity[joint], 0.0)
+    cemented = integrity > 0
+    partner = adjoint_partner(model, c, normal)
+    with_partner = (partner >= 0) & cemented[jnp.maximum(partner, 0)]
+    integrity = jnp.where(with_partner, jnp.minimum(integrity, integrity[jnp.maximum(partner, 0)]), integrity)
     particle = (model.kind[c.a] != POLYGON) | (model.kind[c.b] != POLYGON)
     sets = ContactSets(
         enabled=c.valid,
         friction=params.friction[mat_a, mat_b],
         cohesion=params.cohesion[mat_a, mat_b],
-        tension=jnp.where(cemented, params.tensile[mat_a, mat_b], 0.0),
+        tension=params.tensile[mat_a, mat_b] * integrity,
         rolling=jnp.where(particle, params.rolling[mat_a, mat_b], 0.0),
-        partner=adjoint_partner(model, c, normal),
+        partner=partner,
     )
     return sets, cemented, joint
 
@@ -86,7 +95,9 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
             + stress_load(state.stress, volume))
     vel = params.dynamic * matvec(proj, state.velocity)  # static analysis: each step starts at rest
 
-    contacts, needed = detect(model, centroid, state.rotation, *detection_reach(model, state, params))
+    # Detection is discrete (which pairs to test): no derivative flows through it.
+    contacts, needed = detect(model, *jax.lax.stop_gradient(
+        (centroid, state.rotation, *detection_reach(model, state, params))))
     c = contacts
     gap_now, normal, point = gap_frame(c, centroid, state.rotation)
     jac = jacobians(c, normal, point, gap_now, centroid)
@@ -119,10 +130,10 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     impacting = c.valid & ((hits & (v_hit[:, 0] < 0)) | sustained)
     bounce = jnp.where(sustained, 0.0, restitution)
     b_imp = v_hit.at[:, 0].multiply(1.0 + bounce)
-    apply_m, diag_m = _flexibility(jac, c, m_inv, n)
+    op_m, diag_m = _flexibility(jac, c, m_inv)
     zero = jnp.zeros_like(gap0)
     imp_sets = sets._replace(enabled=impacting, cohesion=zero, tension=zero)
-    imp = pc.solve(apply_m, diag_m, b_imp, imp_sets, jnp.zeros_like(b_imp), params.tol, params.max_iter, momentum)
+    imp = pc.solve(_apply_w, op_m, diag_m, b_imp, imp_sets, jnp.zeros_like(b_imp), params.tol, params.max_iter, momentum)
     v_star = vel + matvec(m_inv, apply_jacobian_t(jac, c, imp.force, n))
     shift = -matvec(m_inv, apply_jacobian_t(jac, c, imp.force * t_hit[:, None], n))
 
@@ -151,20 +162,24 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     # rolling gaps are the relative motion over the step.
     b_con = apply_jacobian(jac_mid, c, d_base)
     b_con = b_con.at[:, 0].set(gap_pred - apply_jacobian(jac_mid, c, d_pred - d_base)[:, 0])
-    apply_k, diag_k = _flexibility(jac_mid, c, k_inv, n)
+    op_k, diag_k = _flexibility(jac_mid, c, k_inv)
     force_scale = momentum / dt
-    con = pc.solve(apply_k, diag_k, b_con, sets, p0, params.tol, params.max_iter, force_scale)
+    con = pc.solve(_apply_w, op_k, diag_k, b_con, sets, p0, params.tol, params.max_iter, force_scale)
 
     # 3. Cement: an inextensible joint (hypothesis ii) that still opens under its full
-    # share of the strength has failed (eq. 63); it never heals (hypothesis iv).
-    gap_end = apply_k(con.force)[:, 0] + b_con[:, 0]
-    size = jnp.maximum(jnp.max(jnp.abs(con.force), initial=0.0), force_scale)
-    opening = gap_end / jnp.where(diag_k[:, 0] > 0, diag_k[:, 0], 1.0) > 10.0 * params.tol * size
-    breaks = cemented & (con.force[:, 0] < 0) & opening
+    # share of the strength has failed (eq. 63); it never heals (hypothesis iv). The
+    # opening over W_nn is the force e it lacks to stay closed; a smoothed rupture (width
+    # w > 0) keeps 1 - e / w of the joint's strength instead of none.
+    gap_end = _apply_w(op_k, con.force)[:, 0] + b_con[:, 0]
+    size = jax.lax.stop_gradient(jnp.maximum(jnp.max(jnp.abs(con.force), initial=0.0), force_scale))
+    lacking = jnp.where(cemented & (con.force[:, 0] < 0),
+                        gap_end / jnp.where(diag_k[:, 0] > 0, diag_k[:, 0], 1.0) - 10.0 * params.tol * size, 0.0)
+    width = params.rupture_width
+    keep = jnp.where(width > 0, jnp.clip(1.0 - jnp.maximum(lacking, 0.0) / jnp.where(width > 0, width, 1.0), 0.0, 1.0),
+                     (lacking <= 0).astype(lacking.dtype))
     n_joints = model.joint_key.shape[0]
     joint_slot = jnp.where(cemented, joint, n_joints)  # out of range: dropped by segment ops
-    broke = jax.ops.segment_max(breaks.astype(jnp.int32), joint_slot, n_joints) > 0
-    joint_intact = state.joint_intact & ~broke
+    joint_integrity = state.joint_integrity * jnp.minimum(jax.ops.segment_min(keep, joint_slot, n_joints), 1.0)
     tension = jax.ops.segment_sum(jnp.maximum(-con.force[:, 0], 0.0), joint_slot, n_joints)
 
     # 4. Integrate: Newmark velocity from d; geometry from d plus the impact shift.
@@ -182,7 +197,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
                                                                       base.plane_strain), strain),
         contact_key=c.key,
         contact_force=con.force,
-        joint_intact=joint_intact,
+        joint_integrity=joint_integrity,
     )
 
     def to_global(p, nrm):
@@ -204,17 +219,22 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
         n_contacts=jnp.sum(c.valid).astype(jnp.int32),
         max_penetration=jnp.maximum(0.0, -jnp.min(jnp.where(c.valid, gap0, 0.0))),
         joint_tension=tension,
-        joint_broken=~joint_intact & (model.joint_key != NO_JOINT),
+        joint_broken=(joint_integrity <= 0) & (model.joint_key != NO_JOINT),
         contacts=report,
     )
     return new_state, info
 
 
-def rollout(model: Model, state: State, params: Params, steps: int):
+def rollout(model: Model, state: State, params: Params, steps: int, *, checkpoint: bool = True):
     """Scan ``step`` ``steps`` times. Returns (final state, (states, infos)) where
-    ``states`` stacks the state after each step."""
+    ``states`` stacks the state after each step.
+
+    Differentiable in ``params`` and ``state`` (forward and reverse mode). With
+    ``checkpoint`` each step is recomputed in the reverse pass (``jax.checkpoint``), so
+    reverse-mode memory grows with the number of steps only, not with the solver's work.
+    """
     def body(s, _):
         s2, info = step(model, s, params)
         return s2, (s2, info)
 
-    return jax.lax.scan(body, state, None, length=steps)
+    return jax.lax.scan(jax.checkpoint(body) if checkpoint else body, state, None, length=steps)

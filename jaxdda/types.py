@@ -93,6 +93,8 @@ class Params:
     tol: jax.Array  # () relative tolerance of the contact solve
     max_iter: jax.Array  # () iteration cap of the contact solve (a float, so grad ignores it)
     margin: jax.Array  # () base contact detection distance d0 (added to the swept distance)
+    rupture_width: jax.Array  # () 0: a joint breaks outright; w > 0: smoothed rupture for calibration
+    # (the joint keeps 1 - e / w of its strength when it lacks a force e to stay closed; docs/design.md)
 
 
 @pytree_dataclass
@@ -109,7 +111,8 @@ class State:
     stress: jax.Array  # (N, 3) [sigma_x, sigma_y, tau_xy] of a deformable body (uniform, eq. 7)
     contact_key: jax.Array  # (C,) int64 keys of last step's contacts (-1 = empty)
     contact_force: jax.Array  # (C, 3) last step's (normal, shear, rolling moment) for warm start
-    joint_intact: jax.Array  # (J,) bool: the cemented joint still holds (hypothesis iv: never heals)
+    joint_integrity: jax.Array  # (J,) share of the strength a cemented joint keeps: 1 intact, 0 broken
+    # (hypothesis iv: it never heals); values in between only under a smoothed rupture
 
     @property
     def centroid(self) -> jax.Array:

@@ -91,7 +91,8 @@ def current_shape(model, stretch: jax.Array):
     points, radii): contacts found in it move rigidly plus the step's strain increment.
     Exact (unchanged) for rigid bodies, whose S is I."""
     scale = jnp.sqrt(jnp.abs(jnp.linalg.det(stretch)))  # a particle's S is a rotation-scaling
-    norm = jnp.linalg.norm(stretch, ord=2, axis=(-2, -1))
+    # Only detection reads the bound radius (no derivative; the SVD's is NaN at S = I).
+    norm = jax.lax.stop_gradient(jnp.linalg.norm(stretch, ord=2, axis=(-2, -1)))
     return dataclasses.replace(
         model,
         local_vertices=jnp.einsum("nij,nvj->nvi", stretch, model.local_vertices),

@@ -108,8 +108,7 @@ def gap_change(c: Contacts, centroid: jax.Array, rotation: jax.Array, shift: jax
     d_rb = _radius_change(c.rb, turn[c.b], strain[c.b])
 
     # Points: |r + dr| - |r| = (2 r.dr + |dr|^2) / (|r + dr| + |r|).
-    rr = jnp.linalg.norm(r, axis=-1)
-    rn = jnp.linalg.norm(r + dr, axis=-1)
+    rr, rn = _safe_unit(r)[1], _safe_unit(r + dr)[1]
     den = rr + rn
     dist_change = (2.0 * jnp.sum(r * dr, -1) + jnp.sum(dr * dr, -1)) / jnp.where(den > 0, den, 1.0)
     # Lines: n' . (r + dr) - n . r with n' = R(turn_b) n (rigid b), or the normal of the

@@ -256,7 +256,7 @@ class SceneBuilder:
                       rotation=jnp.zeros(n), stretch=jnp.broadcast_to(jnp.eye(2), (n, 2, 2)),
                       stress=jnp.asarray(np.array([b.stress for b in self._bodies])),
                       velocity=jnp.asarray(velocity), contact_key=key, contact_force=force,
-                      joint_intact=jnp.zeros((1,), bool))
+                      joint_integrity=jnp.zeros((1,)))
         params = Params(dt=jnp.asarray(float(self.dt)), gravity=jnp.asarray(g),
                         density=jnp.asarray([b.density for b in self._bodies]),
                         young=jnp.asarray([b.young for b in self._bodies]),
@@ -266,7 +266,7 @@ class SceneBuilder:
                         load_rate=jnp.asarray(np.reshape([ld[3] for ld in self._loads], (-1, 2))),
                         dynamic=jnp.asarray(float(self.dynamic)),
                         tol=jnp.asarray(float(self.tol)), max_iter=jnp.asarray(float(self.max_iter)),
-                        margin=jnp.asarray(margin))
+                        margin=jnp.asarray(margin), rupture_width=jnp.asarray(0.0))
         if np.any(tables["tensile"] > 0):
             model, state = cement.with_joints(model, state, params, tol=1e-9 * size)
         return Scene(model, state, params, tuple(labels), tuple(names), self.name)

@@ -36,4 +36,4 @@ def with_joints(model: Model, state: State, params: Params, tol: float) -> tuple
     model = dataclasses.replace(model, joint_key=jnp.asarray(np.asarray(c.key)[sel]),
                                 joint_a=jnp.asarray(np.asarray(c.a)[sel]), joint_b=jnp.asarray(np.asarray(c.b)[sel]),
                                 joint_point=jnp.asarray(np.asarray(point)[sel]))
-    return model, dataclasses.replace(state, joint_intact=jnp.ones((int(sel.sum()),), bool))
+    return model, dataclasses.replace(state, joint_integrity=jnp.ones((int(sel.sum()),)))

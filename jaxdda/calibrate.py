@@ -1,0 +1,283 @@
+"""Fit physical parameters to a measured trajectory by gradient descent (optax).
+
+The gradient of the trajectory misfit comes from reverse mode through a checkpointed
+rollout, with the contact solves differentiated implicitly (``solver.pc``).
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import Callable, Sequence
+
+import jax
+import jax.flatten_util
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+from jaxdda.errors import CapacityError
+from jaxdda.scene.builder import Scene
+from jaxdda.simulate import MAX_REGROW, Trajectory, simulate, with_capacity
+from jaxdda.step import rollout
+from jaxdda.types import Capacities, Params, State
+
+TABLES = ("friction", "restitution", "cohesion", "rolling", "tensile")  # (M, M) per material pair
+PER_BODY = ("density", "young", "poisson")  # (N,)
+POSITIVE = {"friction", "cohesion", "rolling", "tensile", "density", "young"}  # fitted as logarithms
+OBSERVE = {
+    "centroid": lambda s: s.centroid,  # (S+1, N, 2)
+    "pose": lambda s: jnp.concatenate([s.centroid, s.rotation[..., None]], -1),  # (S+1, N, 3)
+}
+
+
+@dataclasses.dataclass
+class Calibration:
+    """The result of ``calibrate``: fitted ``params``, the fitted ``values`` by item, the
+    loss before each iteration and after the last (``history``, length iterations + 1)
+    and each item's value along the way (``trace``)."""
+
+    params: Params
+    values: dict[str, float | np.ndarray]
+    history: np.ndarray
+    trace: dict[str, np.ndarray]
+
+
+@dataclasses.dataclass(frozen=True)
+class _Item:
+    name: str
+    field: str
+    mask: np.ndarray  # which entries of the field the one fitted value sets
+
+
+def _item(scene: Scene, spec: str) -> _Item:
+    field, _, sel = spec.partition(":")
+    params = scene.params
+    if field in TABLES:
+        names = list(scene.materials)
+        if sel:
+            pair = sel.split("/")
+            unknown = [m for m in pair if m not in names]
+            if len(pair) > 2 or unknown:
+                raise ValueError(f"fit item {spec!r}: unknown material {unknown or sel!r} (materials: {names})")
+            i, j = names.index(pair[0]), names.index(pair[-1])
+            mask = np.zeros((len(names),) * 2, bool)
+            mask[i, j] = mask[j, i] = True
+        else:  # every pair of the materials the bodies use
+            used = np.zeros(len(names), bool)
+            used[np.asarray(scene.model.material)] = True
+            mask = used[:, None] & used[None, :]
+    elif field in PER_BODY:
+        n = scene.n_bodies
+        if sel:
+            if not sel.isdigit() or int(sel) >= n:
+                raise ValueError(f"fit item {spec!r}: no body {sel!r} (bodies 0 ... {n - 1})")
+            mask = np.arange(n) == int(sel)
+        else:  # every free body (deformable ones only, for the elastic constants)
+            mask = ~np.asarray(scene.model.fixed)
+            if field != "density":
+                mask &= np.asarray(params.young) > 0
+        if not mask.any():
+            raise ValueError(f"fit item {spec!r} selects no body")
+    elif field == "gravity" and not sel:
+        mask = np.ones(2, bool)
+    else:
+        raise ValueError(f"cannot fit {spec!r}: fit items are {', '.join(TABLES + PER_BODY)} (optionally "
+                         f"':material', ':material_a/material_b' or ':body index') and 'gravity'")
+    return _Item(spec, field, mask)
+
+
+def _start(params: Params, item: _Item, initial: dict) -> jax.Array:
+    current = np.asarray(getattr(params, item.field))
+    value = np.asarray(initial[item.name], float) if item.name in initial else (
+        current[item.mask].reshape(-1)[0] if item.field != "gravity" else current)
+    if item.field in POSITIVE:
+        if not np.all(value > 0):
+            raise ValueError(f"fit item {item.name!r} starts at {value}; it is fitted as a logarithm and needs a "
+                             f"positive start (give initial={{{item.name!r}: ...}})")
+        return jnp.log(jnp.asarray(value, float))
+    return jnp.asarray(value, float)
+
+
+def _apply(params: Params, items: Sequence[_Item], theta: dict) -> Params:
+    updates = {}
+    for item in items:
+        value = jnp.exp(theta[item.name]) if item.field in POSITIVE else theta[item.name]
+        base = updates.get(item.field, getattr(params, item.field))
+        updates[item.field] = jnp.where(jnp.asarray(item.mask), value, base)
+    return dataclasses.replace(params, **updates)
+
+
+def observe_trajectory(observe: str | Callable, states: State) -> jax.Array:
+    """The observed quantity of stacked states (leading axis: time)."""
+    if callable(observe):
+        return observe(states)
+    if observe not in OBSERVE:
+        raise ValueError(f"observe must be a callable or one of {sorted(OBSERVE)}, got {observe!r}")
+    return OBSERVE[observe](states)
+
+
+def _target(target, observe) -> np.ndarray:
+    if isinstance(target, Trajectory):
+        if callable(observe):
+            raise ValueError("with a callable observe, give the target as an array, observe applied to its states")
+        pose = np.concatenate([target.centroid, target.rotation[..., None]], -1)
+        return target.centroid if observe == "centroid" else pose
+    return np.asarray(target, float)
+
+
+def calibrate(scene: Scene, target, fit: Sequence[str], *, optimizer: optax.GradientTransformation | None = None,
+              iterations: int = 100, observe: str | Callable = "centroid", initial: dict | None = None,
+              rupture_width: float | None = None, params: Params | None = None) -> Calibration:
+    """Fit the parameters named in ``fit`` so that ``scene`` reproduces ``target``.
+
+    Args:
+      scene: the scene, started from its own initial state.
+      target: the measured trajectory: a Trajectory, or an array (S+1, ...) of the
+        observed quantity at t = 0, dt, ..., S dt (S steps are simulated).
+      fit: items such as ``"friction"`` (every pair of the materials in use, one value),
+        ``"friction:rock"``, ``"rolling:rock/steel"``, ``"tensile"``, ``"cohesion"``,
+        ``"restitution"``, ``"density"`` (all free bodies) or ``"density:3"``, ``"young"``,
+        ``"poisson"``, ``"gravity"`` (the vector).
+      optimizer: None for Levenberg-Marquardt (forward-mode Jacobian of the misfit; a
+        few iterations for a few parameters), or any optax transformation, which then
+        descends the loss's reverse-mode gradient (line-search methods such as
+        ``optax.lbfgs()`` get the loss as ``value_fn``). Positive quantities (friction,
+        cohesion, rolling, tensile, density, young) are fitted as logarithms.
+      iterations: optimizer steps (each one linearisation or gradient). observe: ``"centroid"``, ``"pose"`` (centroid and
+        rotation) or a function of stacked States. initial: start values by item
+        (default: the scene's).
+      rupture_width: the smoothed rupture of cemented joints (a force, N) used while
+        fitting; default 1 % of the starting tensile strength when ``tensile`` is fitted,
+        else the scene's (0). The returned params keep the scene's own (sharp) rupture.
+
+    The loss is the mean squared difference of the observed quantity over all steps.
+    Returns the final parameters (Calibration).
+    """
+    items = [_item(scene, spec) for spec in fit]
+    if not items:
+        raise ValueError("fit names no parameter")
+    base = scene.params if params is None else params
+    initial = dict(initial or {})
+    unknown = set(initial) - {i.name for i in items}
+    if unknown:
+        raise ValueError(f"initial values for items not fitted: {sorted(unknown)}")
+    theta = {item.name: _start(base, item, initial) for item in items}
+    target = jnp.asarray(_target(target, observe))
+    steps = int(target.shape[0]) - 1
+    if steps < 1:
+        raise ValueError("the target needs at least two time points (t = 0 and one step)")
+    if rupture_width is None:
+        tensile = [i for i in items if i.field == "tensile"]
+        rupture_width = 0.01 * float(jnp.exp(theta[tensile[0].name])) if tensile else float(base.rupture_width)
+    fit_base = dataclasses.replace(base, rupture_width=jnp.asarray(float(rupture_width)))
+    # Buffers sized by a plain run at the start values, regrown if the fit outgrows them.
+    trial = simulate(scene, steps, params=_apply(fit_base, items, theta))
+    needed = Capacities(*np.asarray(trial.info.needed).max(0).tolist())
+    model, state = with_capacity(scene.model, scene.state, scene.model.capacity.grown(needed))
+
+    def make_residual(model, state):
+        def residual(theta):  # the misfit, scaled so that loss = |residual|^2
+            _, (states, infos) = rollout(model, state, _apply(fit_base, items, theta), steps)
+            states = jax.tree.map(lambda s0, s: jnp.concatenate([s0[None], s]), state, states)
+            err = (observe_trajectory(observe, states) - target).reshape(-1)
+            return err / np.sqrt(err.size), (jnp.max(infos.needed, 0), jnp.any(infos.overflow))
+        return residual
+
+    method = _levenberg_marquardt if optimizer is None else _optax(optimizer)
+    history, trace = [], {item.name: [] for item in items}
+
+    def record(theta, value):
+        history.append(value)
+        for item in items:
+            trace[item.name].append(np.asarray(_value(item, theta[item.name])))
+
+    for _ in range(MAX_REGROW):
+        theta_end, needed = method(make_residual(model, state), theta, int(iterations), record)
+        if needed is None:
+            break
+        model, state = with_capacity(model, state, model.capacity.grown(needed))
+        history.clear()
+        for v in trace.values():
+            v.clear()
+    else:
+        raise CapacityError(f"contact buffers kept overflowing during the fit (capacity {model.capacity})")
+    values = {item.name: _scalar(trace[item.name][-1]) for item in items}
+    return Calibration(_apply(base, items, theta_end), values, np.asarray(history),
+                       {k: np.asarray(v) for k, v in trace.items()})
+
+
+def _overflowed(aux):
+    needed, overflow = aux
+    return Capacities(*np.asarray(needed).tolist()) if bool(overflow) else None
+
+
+def _levenberg_marquardt(residual, theta, iterations, record):
+    """Levenberg-Marquardt on the misfit, its Jacobian by forward mode (one tangent per
+    fitted value): the usual method for least squares with few parameters. Each iteration
+    is one linearisation; a rejected step raises the damping and costs an iteration."""
+    flat, unravel = jax.flatten_util.ravel_pytree(theta)
+
+    @jax.jit
+    def linearise(x):
+        r, aux = residual(unravel(x))
+        jac = jax.jacfwd(lambda y: residual(unravel(y))[0])(x)
+        return r, jac, aux
+
+    x = flat
+    r, jac, aux = linearise(x)
+    if (needed := _overflowed(aux)) is not None:
+        return theta, needed
+    value, damping = float(r @ r), 1e-3
+    record(unravel(x), value)
+    for _ in range(iterations):
+        jtj, jtr = jac.T @ jac, jac.T @ r
+        scale = jnp.diag(jtj) + 1e-300
+        step = -jnp.linalg.solve(jtj + damping * jnp.diag(scale), jtr)
+        r_new, jac_new, aux = linearise(x + step)
+        if (needed := _overflowed(aux)) is not None:
+            return theta, needed
+        value_new = float(r_new @ r_new)
+        if value_new <= value:
+            x, r, jac, value, damping = x + step, r_new, jac_new, value_new, max(damping / 3.0, 1e-12)
+        else:
+            damping *= 4.0
+        record(unravel(x), value)
+    return unravel(x), None
+
+
+def _optax(optimizer):
+    """Gradient descent with an optax transformation on the loss |residual|^2 (reverse
+    mode); line-search methods get the loss as ``value_fn``."""
+    optimizer = optax.with_extra_args_support(optimizer)
+
+    def run(residual, theta, iterations, record):
+        def loss(t):
+            r, aux = residual(t)
+            return r @ r, aux
+
+        value_and_grad = jax.value_and_grad(loss, has_aux=True)
+
+        @jax.jit
+        def update(theta, opt_state):
+            (value, aux), grad = value_and_grad(theta)
+            updates, opt_state = optimizer.update(grad, opt_state, theta, value=value, grad=grad,
+                                                  value_fn=lambda t: loss(t)[0])
+            return optax.apply_updates(theta, updates), opt_state, value, aux
+
+        opt_state = optimizer.init(theta)
+        for k in range(iterations + 1):  # the last pass only measures the final loss
+            new_theta, new_opt_state, value, aux = update(theta, opt_state)
+            if (needed := _overflowed(aux)) is not None:
+                return theta, needed
+            record(theta, float(value))
+            if k < iterations:
+                theta, opt_state = new_theta, new_opt_state
+        return theta, None
+    return run
+
+
+def _value(item: _Item, t: jax.Array) -> jax.Array:
+    return jnp.exp(t) if item.field in POSITIVE else t
+
+
+def _scalar(v: np.ndarray):
+    return float(v) if np.ndim(v) == 0 else v
