@@ -6,6 +6,7 @@ rollout, with the contact solves differentiated implicitly (``solver.pc``).
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import Callable, Sequence
 
 import jax
@@ -23,6 +24,7 @@ from jaxdda.types import Capacities, Params, State
 TABLES = ("friction", "restitution", "cohesion", "rolling", "tensile")  # (M, M) per material pair
 PER_BODY = ("density", "young", "poisson")  # (N,)
 POSITIVE = {"friction", "cohesion", "rolling", "tensile", "density", "young"}  # fitted as logarithms
+LM_RADIUS = 0.5  # the largest change of a fitted value per Levenberg-Marquardt iteration
 OBSERVE = {
     "centroid": lambda s: s.centroid,  # (S+1, N, 2)
     "pose": lambda s: jnp.concatenate([s.centroid, s.rotation[..., None]], -1),  # (S+1, N, 3)
@@ -182,7 +184,11 @@ def calibrate(scene: Scene, target, fit: Sequence[str], *, optimizer: optax.Grad
             return err / np.sqrt(err.size), (jnp.max(infos.needed, 0), jnp.any(infos.overflow))
         return residual
 
-    method = _levenberg_marquardt if optimizer is None else _optax(optimizer)
+    if optimizer is None:
+        logarithmic = {item.name: jnp.full(jnp.shape(theta[item.name]), item.field in POSITIVE) for item in items}
+        method = functools.partial(_levenberg_marquardt, logarithmic=logarithmic)
+    else:
+        method = _optax(optimizer)
     history, trace = [], {item.name: [] for item in items}
 
     def record(theta, value):
@@ -210,7 +216,7 @@ def _overflowed(aux):
     return Capacities(*np.asarray(needed).tolist()) if bool(overflow) else None
 
 
-def _levenberg_marquardt(residual, theta, iterations, record):
+def _levenberg_marquardt(residual, theta, iterations, record, logarithmic):
     """Levenberg-Marquardt on the misfit, its Jacobian by forward mode (one tangent per
     fitted value): the usual method for least squares with few parameters. Each iteration
     is one linearisation; a rejected step raises the damping and costs an iteration."""
@@ -223,6 +229,8 @@ def _levenberg_marquardt(residual, theta, iterations, record):
         return r, jac, aux
 
     x = flat
+    full_radius = jnp.where(jax.flatten_util.ravel_pytree(logarithmic)[0], LM_RADIUS, LM_RADIUS * (1.0 + jnp.abs(flat)))
+    radius = full_radius
     r, jac, aux = linearise(x)
     if (needed := _overflowed(aux)) is not None:
         return theta, needed
@@ -232,14 +240,19 @@ def _levenberg_marquardt(residual, theta, iterations, record):
         jtj, jtr = jac.T @ jac, jac.T @ r
         scale = jnp.diag(jtj) + 1e-300
         step = -jnp.linalg.solve(jtj + damping * jnp.diag(scale), jtr)
+        # A trust region: no value moves by more than a factor e^0.5 (or 0.5 (1 + |x|) if
+        # not fitted as a logarithm) per iteration, halved on each rejected step: the
+        # linearisation holds poorly where a rupture or an impact moves by whole steps.
+        step = step * jnp.minimum(1.0, jnp.min(radius / (jnp.abs(step) + 1e-300)))
         r_new, jac_new, aux = linearise(x + step)
         if (needed := _overflowed(aux)) is not None:
             return theta, needed
         value_new = float(r_new @ r_new)
         if value_new <= value:
             x, r, jac, value, damping = x + step, r_new, jac_new, value_new, max(damping / 3.0, 1e-12)
+            radius = jnp.minimum(2.0 * radius, full_radius)
         else:
-            damping *= 4.0
+            damping, radius = 4.0 * damping, 0.5 * radius
         record(unravel(x), value)
     return unravel(x), None
 

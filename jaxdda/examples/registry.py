@@ -1,7 +1,7 @@
 """Name -> scene factory table of the built-in examples."""
 from __future__ import annotations
 
-from jaxdda.examples import paper
+from jaxdda.examples import paper, practical
 from jaxdda.scene.builder import Scene
 
 _EXAMPLES = {
@@ -13,6 +13,9 @@ _EXAMPLES = {
     "paper-7.6": (paper.block_pull, 100, "a block pulled over a base with cohesion shared by two corners"),
     "paper-7.7": (paper.disk_pull, 500, "a disk pulled over a frictional surface (rolling, slip)"),
     "paper-7.8": (paper.cemented_pull, 100, "a block pulled off a cemented interface"),
+    "incline": (practical.incline, 100, "a block sliding down a 30 degree incline (friction)"),
+    "rolling-disk": (practical.rolling_disk, 300, "a disk rolling to rest against rolling resistance"),
+    "rockfall": (practical.rockfall, 600, "a rock rolling and sliding down a slope onto a flat run-out"),
 }
 
 
@@ -35,7 +38,7 @@ def get(name: str, *, heavy: bool = False, **options) -> Scene:
 
 
 def default_steps(name: str) -> int:
-    """The number of steps the paper ran the example for."""
+    """The number of steps the example runs for by default (the paper's, for its cases)."""
     return _entry(name)[1]
 
 

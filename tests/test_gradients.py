@@ -1,0 +1,199 @@
+"""Gradients through contact (issue 5): reverse mode (grad) and forward mode (jvp) of rollouts
+against closed forms and central finite differences; finite at non-smooth events."""
+import dataclasses
+import functools
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxdda
+from jaxdda.examples import practical
+from jaxdda.scene.builder import SceneBuilder
+
+G = 10.0
+FD_RTOL = 1e-5  # the issue's bar for smooth regimes
+
+
+def _with(scene, tol=1e-14):
+    """The scene solved to ``tol`` (finite differences need a solve far below their step)."""
+    return dataclasses.replace(scene, params=dataclasses.replace(scene.params, tol=jnp.asarray(tol)))
+
+
+class Case:
+    """A scalar observable f(theta) of a rollout, with its gradient (and, with ``forward``,
+    its jvp) compiled once and shared by the tests. f is NaN if a contact buffer overflowed."""
+
+    def __init__(self, scene, steps, setup, observe, forward=False):
+        def f(theta):
+            params, state = setup(scene.params, scene.state, theta)
+            end, (_, infos) = jaxdda.rollout(scene.model, state, params, steps)
+            return observe(end, infos) + jnp.where(jnp.any(infos.overflow), jnp.nan, 0.0)
+
+        self.grad = jax.jit(jax.grad(f))
+        self.jvp = jax.jit(lambda t, v: jax.jvp(f, (t,), (v,))) if forward else None
+        self.value = (lambda t: self.jvp(t, jax.tree.map(jnp.zeros_like, t))[0]) if forward else jax.jit(f)
+
+    def __call__(self, theta):
+        value = float(self.value(_floats(theta)))
+        assert np.isfinite(value)
+        return value
+
+    def gradient(self, theta):
+        return {k: float(v) for k, v in self.grad(_floats(theta)).items()}
+
+    def fd(self, theta, key, eps):
+        up, down = dict(theta), dict(theta)
+        up[key], down[key] = theta[key] + eps, theta[key] - eps
+        return (self(up) - self(down)) / (2 * eps)
+
+    def check(self, theta, eps, exact=None):
+        """The gradient equals central differences (and the closed form ``exact``); with
+        ``forward``, the jvp along every unit direction too."""
+        grad = self.gradient(theta)
+        for key in eps:
+            fd = self.fd(theta, key, eps[key])
+            np.testing.assert_allclose(grad[key], fd, rtol=FD_RTOL, err_msg=key)
+            if exact is not None:
+                np.testing.assert_allclose(grad[key], exact[key], rtol=FD_RTOL, err_msg=key)
+            if self.jvp is not None:
+                unit = {k: jnp.asarray(float(k == key)) for k in theta}
+                np.testing.assert_allclose(float(self.jvp(_floats(theta), unit)[1]), grad[key], rtol=1e-10)
+        return grad
+
+
+def _floats(theta):
+    return {k: jnp.asarray(v, jnp.float64) for k, v in theta.items()}
+
+
+def _set_table(params, name, value):
+    return dataclasses.replace(params, **{name: jnp.full_like(getattr(params, name), value)})
+
+
+# -- a block sliding down a 30 degree incline ---------------------------------------------
+ANGLE, T_INCLINE = math.radians(30.0), 0.5
+DOWN = np.array([math.cos(ANGLE), -math.sin(ANGLE)])
+
+
+def _incline_setup(params, state, theta):
+    velocity = state.velocity.at[0, :2].set(theta["v0"] * jnp.asarray(DOWN))
+    return _set_table(params, "friction", theta["mu"]), dataclasses.replace(state, velocity=velocity)
+
+
+@functools.cache
+def incline():
+    scene = _with(practical.incline())
+    return Case(scene, round(T_INCLINE / 0.01), _incline_setup,
+                lambda end, infos: end.displacement[0] @ jnp.asarray(DOWN), forward=True)
+
+
+def test_incline_gradient_vs_friction_and_initial_velocity():
+    # s(T) = v0 T + g (sin a - mu cos a) T^2 / 2 while sliding (the step is exact for it)
+    exact = {"mu": -0.5 * G * math.cos(ANGLE) * T_INCLINE ** 2, "v0": T_INCLINE}
+    incline().check({"mu": 0.3, "v0": 0.5}, {"mu": 1e-4, "v0": 1e-4}, exact)
+
+
+def test_gradient_at_stick_and_at_zero_relative_velocity_is_finite():
+    # Stuck (mu > tan 30): the block stays put for every nearby mu, so ds/dmu = 0; at
+    # v0 = 0 the sliding starts from rest (zero relative velocity) and is still smooth in mu.
+    stuck = incline().gradient({"mu": 0.8, "v0": 0.0})
+    assert abs(stuck["mu"]) < 1e-9 and np.isfinite(stuck["v0"])
+    rest = incline().gradient({"mu": 0.3, "v0": 0.0})
+    np.testing.assert_allclose(rest["mu"], -0.5 * G * math.cos(ANGLE) * T_INCLINE ** 2, rtol=FD_RTOL)
+    assert np.isfinite(rest["v0"])
+
+
+# -- a disk rolling to rest against rolling resistance ------------------------------------
+T_ROLL, RADIUS = 1.0, 0.5
+
+
+@functools.cache
+def rolling():
+    scene = _with(practical.rolling_disk(radius=RADIUS))
+    return Case(scene, round(T_ROLL / 0.01), lambda p, s, th: (_set_table(p, "rolling", th["delta"]), s),
+                lambda end, infos: end.displacement[0, 0])
+
+
+def test_rolling_disk_gradient_vs_rolling_coefficient():
+    # x(T) = v0 T - delta g T^2 / (3 R) while it rolls (I = m R^2 / 2)
+    rolling().check({"delta": 0.01}, {"delta": 1e-6}, {"delta": -G * T_ROLL ** 2 / (3 * RADIUS)})
+
+
+# -- contact forces of a static stack -------------------------------------------------------
+def _base_reaction(end, infos):
+    c = infos.contacts
+    on_base = c.valid[-1] & ((c.a[-1] == 3) | (c.b[-1] == 3))
+    return jnp.sum(jnp.where(on_base, c.normal_force[-1], 0.0))
+
+
+@functools.cache
+def stack():
+    scene = jaxdda.examples.get("paper-7.1")  # tol 1e-14 already
+    return Case(scene, 5, lambda p, s, th: (dataclasses.replace(p, density=p.density.at[:3].set(th["rho"])), s),
+                _base_reaction)
+
+
+def test_static_stack_reaction_vs_density():
+    # the base carries the three disks: 3 rho pi R^2 g
+    stack().check({"rho": 2500.0}, {"rho": 1e-2}, {"rho": 3 * math.pi * 100.0 * G})
+
+
+# -- a deformable block ----------------------------------------------------------------------
+@functools.cache
+def deformable():
+    sb = SceneBuilder(dt=0.002, gravity=(0.0, -G), tol=1e-14)
+    sb.add_material("m", friction=0.5, restitution=0.0)
+    sb.add_polygon(vertices=[(0, 0), (1, 0), (1, 1), (0, 1)], density=1000.0, young=1e6, poisson=0.25,
+                   material="m", velocity=(0.3, 0.0))
+    sb.add_polygon(vertices=[(-2, -1), (5, -1), (5, 0), (-2, 0)], density=1000.0, fixed=True, material="m")
+    scene = sb.build()
+    return Case(scene, 40, lambda p, s, th: (dataclasses.replace(p, young=p.young.at[0].set(th["E"])), s),
+                lambda end, infos: end.displacement[0, 1] + end.stretch[0, 0, 0])
+
+
+def test_deformable_block_gradient_vs_young_modulus():
+    grad = deformable().check({"E": 1e6}, {"E": 1.0})
+    assert grad["E"] != 0.0
+
+
+# -- cemented interface: broken joints and the smoothed rupture ------------------------------
+STEPS_PULL = 260
+
+
+def _pull_setup(params, state, theta):
+    params = _set_table(params, "tensile", theta["t"])
+    return dataclasses.replace(params, load_force=params.load_force.at[0, 0].set(theta["F"]),
+                               load_rate=params.load_rate.at[0, 0].set(theta["rate"]),
+                               rupture_width=theta["w"]), state
+
+
+@functools.cache
+def pull():
+    return Case(_with(jaxdda.examples.get("paper-7.8")), STEPS_PULL, _pull_setup,
+                lambda end, infos: end.displacement[0, 0])
+
+
+def test_gradient_after_the_joints_break():
+    # F = 2500 > t breaks the joints in step 1, which carry t meanwhile: a = (F - t) / m
+    # for one step, then F / m. Smooth in F and t (the break step does not move).
+    grad = pull().check({"t": 2000.0, "F": 2500.0, "rate": 0.0, "w": 0.0}, {"t": 1e-2, "F": 1e-2})
+    assert all(np.isfinite(v) for v in grad.values())
+
+
+def test_smoothed_rupture_makes_the_strength_informative():
+    # Under a ramped pull F = 900 t the joints break in the first step whose load exceeds t:
+    # the end position depends on t through that step, a staircase in t of treads 9 N wide.
+    hard = {"t": 2000.0, "F": 0.0, "rate": 900.0, "w": 0.0}
+    trend = pull().fd(hard, "t", 50.0)  # the staircase's slope over +-50 N
+    assert trend < 0  # a stronger cement holds the block longer
+    assert abs(pull().gradient(hard)["t"]) < 0.01 * abs(trend)  # the sharp model's slope is local only
+    # A width far below the load increments is the sharp model.
+    narrow = dict(hard, w=1e-6)
+    assert pull()(narrow) == pull()(hard)
+    assert pull().gradient(narrow)["t"] == pull().gradient(hard)["t"]
+    # A width of 1 % of t: a differentiable model whose gradient follows the trend.
+    smooth = dict(hard, w=20.0)
+    grad = pull().check(smooth, {"t": 1e-3})["t"]
+    assert 0.1 * trend > grad > 10.0 * trend
