@@ -32,10 +32,11 @@ def newmark_velocity(d: jax.Array, velocity: jax.Array, dt: jax.Array, projector
     return matvec(projector, 2.0 * d / dt - velocity)
 
 
-# Impacts this close after the end of a step still belong to it. Corners of a rigid
-# body that meet a wall together must be resolved together (Newton's law for one of them
-# alone spins the body); when their common impact falls on a step boundary, round-off
-# would otherwise split them between two steps.
+# Impacts closer than SIMULTANEITY * dt are one impact. Corners of a rigid body that meet
+# a wall together must be resolved together (Newton's law for one of them alone spins the
+# body): when their common impact falls on a step boundary, round-off would otherwise
+# split them between two steps, and inside a step it would apply their impulses at
+# instants a few ulps apart, which turns the block by round-off that later steps amplify.
 SIMULTANEITY = 1e-6
 
 
@@ -51,3 +52,13 @@ def impact_time(gap: jax.Array, vn: jax.Array, an: jax.Array, dt: jax.Array):
     t = jnp.where(root_ok, 2.0 * gap / jnp.where(root_ok, denom, 1.0), jnp.inf)
     t = jnp.where(gap <= 0, 0.0, t)
     return jnp.minimum(t, dt), t <= dt * (1.0 + SIMULTANEITY)
+
+
+def common_impact_time(t_hit: jax.Array, struck: jax.Array, a: jax.Array, b: jax.Array, n_bodies: int,
+                       dt: jax.Array) -> jax.Array:
+    """Impact times with those within SIMULTANEITY * dt after the first impact of either
+    body moved onto it (one impact, e.g. two corners meeting a wall), others unchanged."""
+    t = jnp.where(struck, t_hit, jnp.inf)
+    first = jnp.minimum(jax.ops.segment_min(t, a, n_bodies), jax.ops.segment_min(t, b, n_bodies))
+    near = jnp.minimum(first[a], first[b])
+    return jnp.where(struck & (t_hit - near <= SIMULTANEITY * dt), near, t_hit)

@@ -16,7 +16,7 @@ from jaxdda.contact.detect import detect
 from jaxdda.contact.keys import lookup
 from jaxdda.contact.kinematics import (apply_jacobian, apply_jacobian_t, clockwise, gap_change, gap_frame,
                                        jacobians)
-from jaxdda.integrate import free_displacement, impact_time, matvec, newmark_velocity
+from jaxdda.integrate import common_impact_time, free_displacement, impact_time, matvec, newmark_velocity
 from jaxdda.solver import pc
 from jaxdda.solver.sets import ContactSets
 from jaxdda.types import NO_JOINT, POLYGON, ContactReport, Contacts, Model, Params, State, StepInfo
@@ -126,6 +126,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     v_rel, a_rel = apply_jacobian(jac, c, vel), apply_jacobian(jac, c, accel)
     t_hit, hits = impact_time(gap0, v_rel[:, 0], a_rel[:, 0], dt)
     t_hit = jnp.where(hits & ~sustained, t_hit, 0.0)
+    t_hit = common_impact_time(t_hit, c.valid & hits & ~sustained, c.a, c.b, n, dt)
     v_hit = v_rel + a_rel * t_hit[:, None]
     impacting = c.valid & ((hits & (v_hit[:, 0] < 0)) | sustained)
     bounce = jnp.where(sustained, 0.0, restitution)
