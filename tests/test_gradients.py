@@ -7,7 +7,6 @@ import math
 import jax
 import jax.numpy as jnp
 import numpy as np
-import pytest
 
 import jaxdda
 from jaxdda.examples import practical

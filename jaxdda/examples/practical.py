@@ -26,8 +26,8 @@ def incline(heavy: bool = False, *, angle: float = 30.0, friction: float = 0.3, 
     """A ``size`` x ``size`` block (density 1000) on a fixed plane inclined at ``angle``
     degrees, released with speed ``velocity`` down the slope. Sliding (tan angle >
     ``friction``), it accelerates at g (sin a - mu cos a) along the slope; otherwise it
-    sticks. The slope runs down to the right from the origin; the block starts with its
-    downhill corner 1 m below the origin's end of the plane."""
+    sticks. The slope runs down to the right from the origin; the block's uphill corner
+    starts 1 m down the slope from it."""
     a = math.radians(angle)
     t, n = np.array([math.cos(a), -math.sin(a)]), np.array([math.sin(a), math.cos(a)])
     sb = SceneBuilder(dt=dt, gravity=(0.0, -G), name="incline")
@@ -45,7 +45,7 @@ def incline(heavy: bool = False, *, angle: float = 30.0, friction: float = 0.3, 
 def rolling_disk(heavy: bool = False, *, rolling: float = 0.01, friction: float = 1.0, velocity: float = 2.0,
                  radius: float = 0.5, dt: float = 0.01) -> Scene:
     """A disk (density 1000) rolling without slip at ``velocity`` over a flat fixed base,
-    slowed by rolling resistance ``rolling`` (delta, m; eq. 24). The resisting moment
+    slowed by rolling resistance ``rolling`` (delta, m; eqs. 55-57). The resisting moment
     delta N decelerates a solid disk at delta g / (1.5 R) until it rests at
     x = 0.75 R v^2 / (delta g)."""
     sb = SceneBuilder(dt=dt, gravity=(0.0, -G), name="rolling-disk")
