@@ -81,14 +81,16 @@ _run_chunk_jit = jax.jit(_run_chunk, static_argnames=("length",))
 
 
 def with_capacity(model: Model, state: State, capacity: Capacities) -> tuple[Model, State]:
-    """The same model with new buffer capacities, and the state's contact memory re-padded."""
+    """The same model with new buffer capacities, and the state's contact memory re-padded
+    (also for a batch of states: the contact axis is the last of ``contact_key``)."""
     c = capacity.contacts
-    old = state.contact_key.shape[0]
+    key, force = state.contact_key, state.contact_force
+    old = key.shape[-1]
     if c >= old:
-        key = jnp.concatenate([state.contact_key, -jnp.ones((c - old,), jnp.int64)])
-        force = jnp.concatenate([state.contact_force, jnp.zeros((c - old,) + state.contact_force.shape[1:])])
+        key = jnp.concatenate([key, -jnp.ones(key.shape[:-1] + (c - old,), key.dtype)], -1)
+        force = jnp.concatenate([force, jnp.zeros(force.shape[:-2] + (c - old, force.shape[-1]), force.dtype)], -2)
     else:
-        key, force = state.contact_key[:c], state.contact_force[:c]
+        key, force = key[..., :c], force[..., :c, :]
     return dataclasses.replace(model, capacity=capacity), dataclasses.replace(state, contact_key=key, contact_force=force)
 
 

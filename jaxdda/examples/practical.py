@@ -80,3 +80,30 @@ def rockfall(heavy: bool = False, *, profile: Sequence[Sequence[float]] = ((0.0,
     for a, b in zip(pts[:-1], pts[1:]):
         _support(sb, heavy, 2650.0, vertices=_slab(a, b, 2.0), material="rock")
     return sb.build()
+
+
+def pile(heavy: bool = False, *, n: int = 100, friction: float = 0.0, restitution: float = 0.0, radius: float = 0.5,
+         columns: int | None = None, seed: int = 0, tol: float = 1e-8, dt: float = 0.01) -> Scene:
+    """``n`` disks (density 1000, radii uniform in [0.8, 1] x ``radius``, seeded) released
+    at rest from a square-ish grid (``columns`` wide, spacing 2.2 ``radius``) into a box
+    of fixed walls just wider than the grid: they fall and settle into a pile. The
+    benchmark scene (``experiments/``): at rest, the floor carries the total weight."""
+    if n < 1:
+        raise ValueError(f"pile needs n >= 1 disks, got {n}")
+    cols = columns or max(1, int(math.ceil(math.sqrt(n))))
+    rows = int(math.ceil(n / cols))
+    pitch = 2.2 * radius
+    width, height = cols * pitch, (rows + 1) * pitch
+    sb = SceneBuilder(dt=dt, gravity=(0.0, -G), tol=tol, name="pile")
+    sb.add_material("grain", friction=friction, restitution=restitution)
+    wall = 2.0 * radius
+    for rect in ([(-wall, -wall), (width + wall, -wall), (width + wall, 0.0), (-wall, 0.0)],
+                 [(-wall, 0.0), (0.0, 0.0), (0.0, height), (-wall, height)],
+                 [(width, 0.0), (width + wall, 0.0), (width + wall, height), (width, height)]):
+        _support(sb, heavy, 1000.0, vertices=rect, material="grain")
+    radii = radius * np.random.default_rng(seed).uniform(0.8, 1.0, n)
+    for k in range(n):
+        i, j = k % cols, k // cols
+        sb.add_disk(center=((i + 0.5) * pitch, (j + 0.5) * pitch), radius=float(radii[k]), density=1000.0,
+                    material="grain")
+    return sb.build()

@@ -16,6 +16,7 @@ _EXAMPLES = {
     "incline": (practical.incline, 100, "a block sliding down a 30 degree incline (friction)"),
     "rolling-disk": (practical.rolling_disk, 300, "a disk rolling to rest against rolling resistance"),
     "rockfall": (practical.rockfall, 600, "a rock rolling and sliding down a slope onto a flat run-out"),
+    "pile": (practical.pile, 300, "disks settling in a box (n=, friction=): the benchmark scene"),
 }
 
 

@@ -14,7 +14,7 @@ from jaxdda.types import Model, Params, State
 
 
 @jax.jit
-def _initial_contacts(model: Model, state: State, params: Params):
+def initial_contacts(model: Model, state: State, params: Params):
     n = model.n_bodies
     c, needed = detect(model, state.centroid, state.rotation, jnp.full((n,), 0.5 * params.margin), jnp.zeros(n))
     gap, _, point = gap_frame(c, state.centroid, state.rotation)
@@ -24,7 +24,7 @@ def _initial_contacts(model: Model, state: State, params: Params):
 def with_joints(model: Model, state: State, params: Params, tol: float) -> tuple[Model, State]:
     """The model with a joint for every contact whose gap is within ``tol`` at t = 0 and
     whose material pair has a tensile strength, all intact."""
-    c, gap, point, needed = _initial_contacts(model, state, params)
+    c, gap, point, needed = initial_contacts(model, state, params)
     if np.any(np.asarray(needed) > np.asarray(dataclasses.astuple(model.capacity))):
         raise CapacityError(f"initial contact detection overflowed (needed {np.asarray(needed).tolist()}, "
                             f"capacity {model.capacity})")

@@ -1,0 +1,131 @@
+"""Pad scenes of different sizes to one shape, so that ``vmap`` can batch them.
+
+A padding body is a fixed, weightless disk far outside the scene (fixed pairs are never
+tested, so it meets nothing); padding polygon vertices are masked out; padding
+materials, loads and joints are inert (zero tables, zero forces, no joint key).
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxdda.errors import CapacityError
+from jaxdda.scene.builder import Scene
+from jaxdda.scene.cement import initial_contacts
+from jaxdda.types import DISK, NO_JOINT, Capacities, Model, Params, State
+
+
+@dataclasses.dataclass(frozen=True)
+class Shape:
+    """The padded sizes: bodies, polygon vertices, materials, loads, joints, buffers."""
+
+    bodies: int
+    vertices: int
+    materials: int
+    loads: int
+    joints: int
+    capacity: Capacities
+
+    @staticmethod
+    def covering(scenes: Sequence[Scene]) -> "Shape":
+        def most(f):
+            return max(f(s) for s in scenes)
+
+        caps = [dataclasses.astuple(s.model.capacity) for s in scenes]
+        return Shape(most(lambda s: s.model.n_bodies), most(lambda s: s.model.max_vertices),
+                     most(lambda s: s.params.friction.shape[0]), most(lambda s: s.model.load_body.shape[0]),
+                     most(lambda s: s.model.joint_key.shape[0]), Capacities(*np.max(caps, 0).tolist()))
+
+
+def _pad(x, size: int, fill, axis: int = 0):
+    x = np.asarray(x)
+    extra = size - x.shape[axis]
+    if extra == 0:
+        return x
+    shape = list(x.shape)
+    shape[axis] = extra
+    return np.concatenate([x, np.full(shape, fill, x.dtype)], axis)
+
+
+def pad_scene(scene: Scene, shape: Shape) -> tuple[Model, State, Params]:
+    """(model, state, params) of ``scene`` padded to ``shape`` (numpy leaves)."""
+    m, s, p = scene.model, scene.state, scene.params
+    n, extra = m.n_bodies, shape.bodies - m.n_bodies
+    size = float(np.median(np.asarray(m.bound_radius)))  # keeps the broad phase's median cell size
+    far = np.asarray(s.centroid).max(0) + 10.0 * np.max(np.asarray(m.bound_radius)) + 10.0 * size
+    spots = far + np.stack([3.0 * size * np.arange(extra), np.zeros(extra)], -1)
+
+    def bodies(x, fill):
+        return _pad(x, shape.bodies, fill)
+
+    verts = _pad(np.asarray(m.local_vertices), shape.vertices, 0.0, axis=1)
+    model = dataclasses.replace(
+        m,
+        kind=bodies(m.kind, DISK), fixed=bodies(m.fixed, True), radius=bodies(m.radius, size),
+        inner_radius=bodies(m.inner_radius, 0.0), local_vertices=bodies(verts, 0.0),
+        vertex_mask=bodies(_pad(np.asarray(m.vertex_mask), shape.vertices, False, axis=1), False),
+        n_vertices=bodies(m.n_vertices, 0), area=bodies(m.area, np.pi * size ** 2),
+        polar_moment=bodies(m.polar_moment, 0.5 * np.pi * size ** 4),
+        second_moment=bodies(m.second_moment, 0.0), plane_strain=bodies(m.plane_strain, False),
+        bound_radius=bodies(m.bound_radius, size), gravity_scale=bodies(m.gravity_scale, 0.0),
+        material=bodies(m.material, 0), dof_projector=bodies(m.dof_projector, 0.0),
+        load_body=_pad(m.load_body, shape.loads, 0), load_point=_pad(m.load_point, shape.loads, 0.0),
+        joint_key=_pad(m.joint_key, shape.joints, NO_JOINT), joint_a=_pad(m.joint_a, shape.joints, 0),
+        joint_b=_pad(m.joint_b, shape.joints, 0), joint_point=_pad(m.joint_point, shape.joints, 0.0),
+        capacity=shape.capacity, n_bodies=shape.bodies, max_vertices=shape.vertices)
+
+    def table(x):
+        return _pad(_pad(x, shape.materials, 0.0, 0), shape.materials, 0.0, 1)
+
+    params = dataclasses.replace(
+        p, density=bodies(p.density, 1.0), young=bodies(p.young, 0.0), poisson=bodies(p.poisson, 0.0),
+        friction=table(p.friction), restitution=table(p.restitution), cohesion=table(p.cohesion),
+        rolling=table(p.rolling), tensile=table(p.tensile),
+        load_force=_pad(p.load_force, shape.loads, 0.0), load_rate=_pad(p.load_rate, shape.loads, 0.0))
+    c = shape.capacity.contacts
+    state = dataclasses.replace(
+        s, origin=np.concatenate([np.asarray(s.origin), spots]), displacement=bodies(s.displacement, 0.0),
+        rotation=bodies(s.rotation, 0.0), velocity=bodies(s.velocity, 0.0),
+        stretch=bodies(s.stretch, 0.0) + np.concatenate([np.zeros((n, 2, 2)), np.tile(np.eye(2), (extra, 1, 1))]),
+        stress=bodies(s.stress, 0.0), contact_key=_pad(s.contact_key, c, -1), contact_force=_pad(s.contact_force, c, 0.0),
+        joint_integrity=_pad(s.joint_integrity, shape.joints, 0.0))
+    if (shape.bodies, shape.vertices) != (n, m.max_vertices):  # contact keys encode both
+        if np.any(np.asarray(s.contact_key) >= 0):
+            raise ValueError(f"scene {scene.name!r} carries contact memory (a state after some steps): only "
+                             f"scenes as built can be padded to {shape.bodies} bodies / {shape.vertices} vertices")
+        model = _rekey_joints(model, state, params)
+    return model, state, params
+
+
+def _rekey_joints(model: Model, state: State, params: Params) -> Model:
+    """The joints' contact keys in the padded numbering: each joint is the contact of
+    the padded scene between the same two bodies at the same point."""
+    keys = np.asarray(model.joint_key)
+    real = keys != NO_JOINT
+    if not real.any():
+        return model
+    c, _, point, needed = initial_contacts(*jax.tree.map(jnp.asarray, (model, state, params)))
+    if np.any(np.asarray(needed) > np.asarray(dataclasses.astuple(model.capacity))):
+        raise CapacityError(f"re-detecting the cemented joints of a padded scene overflowed (needed "
+                            f"{np.asarray(needed).tolist()}, capacity {model.capacity})")
+    same = ((np.asarray(c.a)[None] == np.asarray(model.joint_a)[:, None])
+            & (np.asarray(c.b)[None] == np.asarray(model.joint_b)[:, None]) & np.asarray(c.valid)[None])
+    dist = np.linalg.norm(np.asarray(point)[None] - np.asarray(model.joint_point)[:, None], axis=-1)
+    dist = np.where(same, dist, np.inf)
+    best = np.argmin(dist, 1)
+    tol = 1e-9 * (1.0 + np.max(np.abs(np.asarray(state.origin))))
+    lost = real & ~(dist[np.arange(len(keys)), best] <= tol)
+    if lost.any():
+        raise ValueError(f"cemented joint {int(np.flatnonzero(lost)[0])} was not found again in the padded scene")
+    return dataclasses.replace(model, joint_key=np.where(real, np.asarray(c.key)[best], NO_JOINT))
+
+
+def stack_scenes(scenes: Sequence[Scene]) -> tuple[Model, State, Params]:
+    """Every scene padded to a common shape and stacked on a leading batch axis."""
+    shape = Shape.covering(scenes)
+    padded = [pad_scene(s, shape) for s in scenes]
+    return jax.tree.map(lambda *xs: jnp.asarray(np.stack(xs)), *padded)

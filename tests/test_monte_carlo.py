@@ -1,0 +1,151 @@
+"""jaxdda.monte_carlo: batched scenarios against closed forms and against single runs.
+
+Compiled programs are shared: one batch shape per scene kind.
+"""
+import dataclasses
+import math
+import os
+import subprocess
+import sys
+import textwrap
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxdda
+from jaxdda.observe import Observable
+from jaxdda.simulate import with_capacity
+from jaxdda.types import Capacities
+
+G = 10.0
+ANGLE = math.radians(30.0)
+SLOPE = np.array([math.cos(ANGLE), -math.sin(ANGLE)])
+V0 = np.array([0.0, 0.5, 1.0, 2.0])
+MU = np.array([0.1, 0.2, 0.3, 0.4])  # all below tan 30 = 0.577: every block slides
+STEPS = 100
+
+
+@pytest.fixture(scope="module")
+def incline():
+    return jaxdda.examples.get("incline")
+
+
+def _incline_run(scene):
+    mean_x = Observable(lambda s, s0: s.centroid[:, 0], "mean")
+    return jaxdda.monte_carlo(scene, STEPS, velocity=V0[:, None] * SLOPE, params={"friction": MU},
+                              observe={"final_centroid": jaxdda.observe.BUILTIN["final_centroid"],
+                                       "max_speed": jaxdda.observe.BUILTIN["max_speed"],
+                                       "runout": jaxdda.observe.BUILTIN["runout"], "mean_x": mean_x},
+                              trajectories=True, progress=False)
+
+
+@pytest.fixture(scope="module")
+def sliding(incline):
+    return _incline_run(incline)
+
+
+def test_each_scenario_slides_as_the_closed_form(incline, sliding):
+    t = STEPS * 0.01
+    accel = G * (math.sin(ANGLE) - MU * math.cos(ANGLE))
+    travel = V0 * t + 0.5 * accel * t * t
+    start = np.asarray(incline.state.centroid)[0]
+    moved = sliding["final_centroid"][:, 0] - start
+    np.testing.assert_allclose(moved @ SLOPE, travel, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(moved @ np.array([math.sin(ANGLE), math.cos(ANGLE)]), 0.0, atol=1e-9)
+    np.testing.assert_allclose(sliding["max_speed"][:, 0], V0 + accel * t, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(sliding["runout"][:, 0], travel * math.cos(ANGLE), rtol=0, atol=1e-9)
+    assert sliding.converged.all() and len(sliding) == 4
+
+
+def test_observables_agree_with_the_kept_trajectory(sliding):
+    traj = sliding.trajectory
+    assert traj["centroid"].shape == (4, STEPS + 1, 2, 2) and sliding.time.shape == (STEPS + 1,)
+    np.testing.assert_array_equal(traj["centroid"][:, -1], sliding["final_centroid"])
+    np.testing.assert_allclose(sliding["mean_x"][:, 0], traj["centroid"][:, 1:, 0, 0].mean(1), rtol=1e-14)
+    speed = np.linalg.norm(traj["velocity"][..., :2], axis=-1).max(1)
+    np.testing.assert_array_equal(sliding["max_speed"], speed)
+
+
+def test_a_scenario_matches_a_single_run(incline, sliding):
+    k = 2
+    params = dataclasses.replace(incline.params, friction=jnp.full_like(incline.params.friction, MU[k]))
+    state = dataclasses.replace(incline.state, velocity=incline.state.velocity.at[0, :2].set(V0[k] * SLOPE))
+    run = jaxdda.simulate(dataclasses.replace(incline, state=state), STEPS, params=params)
+    # equal up to the contact solve's tolerance (1e-12 relative): a batch takes other iterates
+    np.testing.assert_allclose(sliding.trajectory["centroid"][k], run.centroid, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(sliding.trajectory["velocity"][k], run.velocity, rtol=0, atol=1e-9)
+
+
+def test_undersized_buffers_are_regrown_to_the_same_result(incline, sliding):
+    model, state = with_capacity(incline.model, incline.state, Capacities(1, 1, 1, 1, 1))
+    small = _incline_run(dataclasses.replace(incline, model=model, state=state))
+    np.testing.assert_array_equal(small.trajectory["centroid"], sliding.trajectory["centroid"])
+
+
+def test_exceedance_curve(sliding):
+    x, p = sliding.exceedance("runout")
+    assert np.all(np.diff(x) >= 0) and p[0] == 1.0 and p[-1] == 0.25
+    for xi, pi in zip(x, p):
+        assert pi == np.mean(sliding["runout"][:, 0] >= xi)
+
+
+def test_scenes_of_different_sizes_batch_by_padding():
+    """A rockfall (3 bodies), a longer rockfall (4) and the cemented pull of case 7.8 (2
+    polygons, a load, joints) padded together match each one run alone."""
+    scenes = [jaxdda.examples.get("rockfall"),
+              jaxdda.examples.get("rockfall", profile=((0, 10), (6, 0), (20, -1), (60, -1)), velocity=(1.0, 0.0)),
+              jaxdda.examples.get("paper-7.8")]
+    steps = 100
+    mc = jaxdda.monte_carlo(scenes, steps, observe=("final_centroid", "final_rotation"), progress=False)
+    np.testing.assert_array_equal(mc.n_bodies, [3, 4, 2])
+    assert mc["final_centroid"].shape == (3, 4, 2)
+    for k, scene in enumerate(scenes):
+        run = jaxdda.simulate(scene, steps)
+        n = scene.n_bodies
+        np.testing.assert_allclose(mc["final_centroid"][k, :n], run.centroid[-1], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(mc["final_rotation"][k, :n], run.rotation[-1], rtol=0, atol=1e-9)
+    # 7.8's joint (strength 2000 N) holds the block against the 1000 N pull: padding kept
+    # the joint (without it the block would have moved F t^2 / 2m = 0.125 m)
+    pulled = mc["final_centroid"][2, 0] - np.asarray(scenes[2].state.centroid)[0]
+    assert np.linalg.norm(pulled) < 1e-9
+
+
+def test_sharded_over_forced_host_devices_matches_one_device():
+    code = textwrap.dedent("""
+        import os
+        os.environ["XLA_FLAGS"] = "--xla_force_host_platform_device_count=4"
+        import jax, numpy as np, jaxdda
+        assert len(jax.local_devices()) == 4
+        scene = jaxdda.examples.get("rockfall")
+        v = np.random.default_rng(1).normal(0.0, 1.0, (6, 2))  # 6 scenarios: padded to 8 = 2 per device
+        four = jaxdda.monte_carlo(scene, 60, velocity=v, progress=False)
+        one = jaxdda.monte_carlo(scene, 60, velocity=v, progress=False, devices=jax.local_devices()[:1])
+        assert four.devices == 4 and one.devices == 1 and len(four) == 6
+        for k in four.observables:
+            np.testing.assert_allclose(four[k], one[k], rtol=0, atol=1e-9)
+        print("ok")
+    """)
+    env = dict(os.environ)
+    env.pop("XLA_FLAGS", None)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=600)
+    assert out.returncode == 0, out.stderr[-3000:]
+    assert out.stdout.strip().endswith("ok")
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(velocity=np.zeros((3, 5))), "velocity must be"),
+    (dict(velocity=np.full((2, 2), np.nan)), "not finite"),
+    (dict(velocity=np.zeros((2, 2)), body=1), "is fixed"),
+    (dict(velocity=np.zeros((2, 2)), body=7), "body must be"),
+    (dict(velocity=np.zeros((2, 2)), params={"friction": np.ones(3)}), "batch sizes disagree"),
+    (dict(params={"friction": 0.3}), "leading batch axis"),
+    (dict(params={"stiffness": np.ones(2)}), "cannot fit 'stiffness'"),
+    (dict(params={"friction:granite": np.ones(2)}), "unknown material"),
+    (dict(observe=("runout", "speed")), "unknown observable 'speed'"),
+    (dict(velocity=np.zeros((0, 2))), "empty"),
+    (dict(chunk=0), "chunk must be"),
+])
+def test_bad_input_is_named(incline, kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        jaxdda.monte_carlo(incline, 10, progress=False, **kwargs)
