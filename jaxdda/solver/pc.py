@@ -1,4 +1,8 @@
-"""Projection-contraction solve of the contact VI (He & Liao 2002; paper eqs. 39-41).
+"""Solve of the contact VI (paper eqs. 39-41) by accelerated projected gradient.
+
+The paper iterates projection-contraction (He & Liao 2002); its fixed point is the same,
+y = P(y - F(y)), which ``_iterate`` reaches with Nesterov momentum and adaptive restart
+(FISTA), about ten times fewer iterations on piles (see ``_iterate``).
 
 Find p in X(p) with (q - p)^T G(p) >= 0 for all q in X(p), where G(p) = W p + b is the
 gap (or velocity) function, W = J K^-1 J^T the contact flexibility. W is never formed:
@@ -19,11 +23,6 @@ import jax
 import jax.numpy as jnp
 
 from jaxdda.solver.sets import ContactSets, project
-
-NU = 0.9  # accept a prediction when beta |F(y) - F(y~)| <= NU |y - y~|
-GROW = 0.3  # grow beta when that ratio falls below GROW
-GAMMA = 1.9  # relaxation of the correction step, in (0, 2)
-
 
 class Solution(NamedTuple):
     force: jax.Array  # (C, 3) normal force, shear force, rolling moment (or their impulses)
@@ -65,50 +64,74 @@ def solve(apply_w: Callable[[Any, jax.Array], jax.Array], operand: Any, w_diag: 
 
 
 def _iterate(apply_w, operand, b, sets, scale, p0, tol, max_iter, force_scale):
-    """The projection-contraction iteration on scaled unknowns y = p / scale."""
-    enabled = sets.enabled
+    """Accelerated projected gradient on the scaled unknowns y = p / scale.
 
-    def proj(z, normal=None):
-        return project(z, scale, sets, None if normal is None else scale[:, 0] * normal)
+    FISTA (Beck & Teboulle 2009): y+ = P(z - F(z) / L) from the extrapolated point
+    z = y + theta (y - y_prev), with the adaptive restart of O'Donoghue & Candes (2015):
+    the momentum is dropped when the step goes against it, (z - y+).(y+ - y) > 0. With
+    the friction and rolling bounds frozen at the normal forces the problem is the convex
+    QP min 1/2 y^T (S W S) y + (S b)^T y over X (S W S has unit diagonal, its condition
+    number grows as the square of a force chain's length, so the momentum's square root
+    of it is what counts on piles: ~10x fewer iterations than projection-contraction).
+    P bounds them by the projected normal of the same point, so every iterate lies in
+    X(y) and a fixed point solves the QVI. L (the largest eigenvalue of S W S, >= 1) is
+    found by backtracking: a step whose curvature d^T (S W S) d exceeds L |d|^2 is redone
+    with a larger L. S W S y is carried along (one product per iteration; the
+    extrapolation's by linearity), so the residual costs no extra product.
 
-    def field(y):  # F(y) = S (W S y + b)
-        return scale * (apply_w(operand, scale * y) + b)
+    With friction the QVI is not monotone: a self-equilibrated force mode (S W S v = 0,
+    from redundant contacts) whose sliding contacts stay on their cone edges leaves G
+    unchanged, so along it the residual is flat; momentum crosses such valleys where a
+    plain projection method crawls, but where the face of X holding the iterate has no
+    solution (a frictional wedge: the mode's equations are inconsistent) the residual has
+    a floor that no iteration goes below. The iterate of least residual is returned.
+    """
+    def proj(z):
+        return project(z, scale, sets)
+
+    def amul(y):  # S W S y
+        return scale * apply_w(operand, scale * y)
+
+    c = scale * b
 
     def residual(y, fy):
         r = scale * (y - proj(y - fy))
         size = jnp.maximum(jnp.max(jnp.abs(scale * y), initial=0.0), force_scale)
         return jnp.max(jnp.abs(r), initial=0.0) / jnp.where(size > 0, size, 1.0)
 
-    y0 = proj(jnp.where(enabled[:, None], p0 / jnp.where(scale > 0, scale, 1.0), 0.0))
-    f0 = field(y0)
+    y0 = proj(jnp.where(sets.enabled[:, None], p0 / jnp.where(scale > 0, scale, 1.0), 0.0))
+    a0 = amul(y0)
 
     def cond(carry):
-        _, _, _, k, res = carry
+        k, res = carry[-2], carry[-1]
         return (res > tol) & (k < max_iter)
 
     def body(carry):
-        y, fy, beta, k, _ = carry
-        # X(p) is frozen at the current iterate's normal force for this iteration, so
-        # the prediction and the correction project onto one convex set.
-        yt = proj(y - beta * fy, y[:, 0])
-        ft = field(yt)
-        dy, df = y - yt, fy - ft
-        ny = jnp.sqrt(jnp.sum(dy * dy))
-        ratio_r = beta * jnp.sqrt(jnp.sum(df * df)) / jnp.where(ny > 0, ny, 1.0)
-        accept = ratio_r <= NU
-        d = dy - beta * df
-        dd = jnp.sum(d * d)
-        alpha = jnp.sum(dy * d) / jnp.where(dd > 0, dd, 1.0)
-        y_new = proj(y - GAMMA * alpha * beta * ft, y[:, 0])
-        y_new = jnp.where(accept, y_new, y)
-        f_new = jnp.where(accept, field(y_new), fy)
-        beta = jnp.where(accept, jnp.where(ratio_r < GROW, beta * 1.5, beta),
-                         beta * 0.7 * jnp.minimum(1.0, 1.0 / jnp.maximum(ratio_r, 1e-300)))
-        return y_new, f_new, beta, k + 1, residual(y_new, f_new)
+        y, ay, y_prev, ay_prev, t, lip, y_best, k, res_best = carry
+        t_next = 0.5 * (1.0 + jnp.sqrt(1.0 + 4.0 * t * t))
+        theta = (t - 1.0) / t_next
+        z, az = y + theta * (y - y_prev), ay + theta * (ay - ay_prev)
+        y_new = proj(z - (az + c) / lip)
+        ay_new = amul(y_new)
+        d, ad = y_new - z, ay_new - az
+        dd, dad = jnp.sum(d * d), jnp.sum(d * ad)
+        # Round-off in d^T S W S d (S W S z is extrapolated, not recomputed) is no curvature.
+        ok = dad <= lip * dd * (1.0 + 1e-10) + 1e-13 * jnp.sqrt(dd * jnp.sum(ay_new * ay_new))
+        restart = jnp.sum((z - y_new) * (y_new - y)) > 0
+        lip = jnp.where(ok, lip, jnp.maximum(1.5 * lip, 1.1 * dad / jnp.where(dd > 0, dd, 1.0)))
+        y_prev = jnp.where(ok, jnp.where(restart, y_new, y), y_prev)
+        ay_prev = jnp.where(ok, jnp.where(restart, ay_new, ay), ay_prev)
+        y, ay = jnp.where(ok, y_new, y), jnp.where(ok, ay_new, ay)
+        t = jnp.where(ok, jnp.where(restart, 1.0, t_next), t)
+        res = residual(y, ay + c)
+        better = res < res_best
+        return (y, ay, y_prev, ay_prev, t, lip, jnp.where(better, y, y_best), k + 1,
+                jnp.where(better, res, res_best))
 
-    init = (y0, f0, jnp.asarray(1.0, b.dtype), jnp.int32(0), residual(y0, f0))
-    y, _, _, k, res = jax.lax.while_loop(cond, body, init)
-    return y, k, res
+    one = jnp.asarray(1.0, b.dtype)
+    init = (y0, a0, y0, a0, one, one, y0, jnp.int32(0), residual(y0, a0 + c))
+    *_, y_best, k, res = jax.lax.while_loop(cond, body, init)
+    return y_best, k, res
 
 
 # The adjoint linear solves: GMRES, restarted (the system is square, not symmetric where
