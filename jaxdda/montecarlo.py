@@ -113,6 +113,8 @@ def monte_carlo(scene: Scene | Sequence[Scene], steps: int, *, velocity=None, bo
         model, state, base = jax.tree.map(jnp.asarray, (scene.model, scene.state, scene.params))
         state, base = jax.tree.map(lambda x: np.broadcast_to(np.asarray(x), (b,) + np.shape(x)), (state, base))
         n_real = np.full(b, scene.n_bodies)
+    if isinstance(params, dict) and any(s.materials != scenes[0].materials for s in scenes):
+        raise ValueError("params items name materials: the scenes must have the same materials, in the same order")
     state = _with_velocity(state, velocity, body, scenes[0], np.asarray(model.fixed))
     params = _with_params(base, params, scenes[0], b)
 
@@ -184,7 +186,7 @@ def _with_velocity(state, velocity, body, scene, fixed):
         if np.any(fixed[..., body]):
             raise ValueError(f"body {body} ({scene.labels[body]}) is fixed: it cannot be given a velocity")
         vel[:, body, : v.shape[1]] = v
-    elif v.ndim == 3 and v.shape[1:] == (vel.shape[1], 3) or (v.ndim == 3 and v.shape[1:] == (n, 3)):
+    elif v.ndim == 3 and v.shape[1:] in ((vel.shape[1], 3), (n, 3)):
         vel[:, : v.shape[1], :3] = np.where(fixed[..., : v.shape[1], None], 0.0, v)
     else:
         raise ValueError(f"velocity must be (B, 2), (B, 3) or (B, {n}, 3), got shape {v.shape}")
@@ -198,10 +200,9 @@ def _with_params(base: Params, params, scene: Scene, b: int) -> Params:
     if params is None:
         return base
     if isinstance(params, Params):
-        for path, (x, y) in zip(jax.tree_util.tree_leaves_with_path(params), zip(jax.tree.leaves(params),
-                                                                                   jax.tree.leaves(base))):
+        for (path, x), y in zip(jax.tree_util.tree_leaves_with_path(params), jax.tree.leaves(base)):
             if np.shape(x) != np.shape(y):
-                raise ValueError(f"params{jax.tree_util.keystr(path[0])} has shape {np.shape(x)}, expected {np.shape(y)}")
+                raise ValueError(f"params{jax.tree_util.keystr(path)} has shape {np.shape(x)}, expected {np.shape(y)}")
         return jax.tree.map(np.asarray, params)
     if not isinstance(params, dict):
         raise TypeError("params must be a dict {item: values} or a batched Params")

@@ -9,6 +9,7 @@ import subprocess
 import sys
 import textwrap
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -31,13 +32,16 @@ def incline():
     return jaxdda.examples.get("incline")
 
 
-def _incline_run(scene):
-    mean_x = Observable(lambda s, s0: s.centroid[:, 0], "mean")
-    return jaxdda.monte_carlo(scene, STEPS, velocity=V0[:, None] * SLOPE, params={"friction": MU},
-                              observe={"final_centroid": jaxdda.observe.BUILTIN["final_centroid"],
-                                       "max_speed": jaxdda.observe.BUILTIN["max_speed"],
-                                       "runout": jaxdda.observe.BUILTIN["runout"], "mean_x": mean_x},
-                              trajectories=True, progress=False)
+# one dict for every run, so the runs share one compiled program (observables key it)
+OBSERVE = {"final_centroid": jaxdda.observe.BUILTIN["final_centroid"],
+           "max_speed": jaxdda.observe.BUILTIN["max_speed"], "runout": jaxdda.observe.BUILTIN["runout"],
+           "mean_x": Observable(lambda s, s0: s.centroid[:, 0], "mean")}
+
+
+def _incline_run(scene, params=None):
+    return jaxdda.monte_carlo(scene, STEPS, velocity=V0[:, None] * SLOPE,
+                              params={"friction": MU} if params is None else params,
+                              observe=OBSERVE, trajectories=True, progress=False)
 
 
 @pytest.fixture(scope="module")
@@ -81,6 +85,17 @@ def test_undersized_buffers_are_regrown_to_the_same_result(incline, sliding):
     model, state = with_capacity(incline.model, incline.state, Capacities(1, 1, 1, 1, 1))
     small = _incline_run(dataclasses.replace(incline, model=model, state=state))
     np.testing.assert_array_equal(small.trajectory["centroid"], sliding.trajectory["centroid"])
+
+
+def test_batched_params_give_the_same_runs(incline, sliding):
+    table = np.broadcast_to(np.asarray(incline.params.friction), (4,) + incline.params.friction.shape)
+    params = jax.tree.map(lambda x: np.broadcast_to(np.asarray(x), (4,) + np.shape(x)), incline.params)
+    params = dataclasses.replace(params, friction=MU[:, None, None] * np.ones_like(table))
+    again = _incline_run(incline, params)
+    np.testing.assert_array_equal(again.trajectory["centroid"], sliding.trajectory["centroid"])
+    with pytest.raises(ValueError, match=r"params\.friction has shape"):
+        jaxdda.monte_carlo(incline, 10, params=dataclasses.replace(params, friction=np.ones((4, 7, 7))),
+                           progress=False)
 
 
 def test_exceedance_curve(sliding):
