@@ -62,3 +62,45 @@ def common_impact_time(t_hit: jax.Array, struck: jax.Array, a: jax.Array, b: jax
     first = jnp.minimum(jax.ops.segment_min(t, a, n_bodies), jax.ops.segment_min(t, b, n_bodies))
     near = jnp.minimum(first[a], first[b])
     return jnp.where(struck & (t_hit - near <= SIMULTANEITY * dt), near, t_hit)
+
+
+def impact_clock(t_hit: jax.Array, struck: jax.Array, carrying: jax.Array, a: jax.Array, b: jax.Array,
+                 fixed: jax.Array) -> jax.Array:
+    """Per body (N,): the time in the step at which its velocity changes in the impact
+    stage, so that it moves with its old velocity until then and its new one after.
+
+    A body struck by an impact (``struck`` contacts, times ``t_hit``) changes at its first
+    impact. A body that is not struck itself but passes an impact's impulse on (through
+    ``carrying`` contacts: a resting stack under a falling body, a free chain pushed at
+    one end) changes when that impulse arrives: at the time of the impact it passes on,
+    found by spreading the struck bodies' clocks along carrying contacts between free
+    bodies (the earliest wins; fixed bodies pass nothing on). Others: 0.
+
+    Per body, not per contact: a stack under a falling disk takes the disk's impulse and
+    the floor's equal and opposite one at the same instant, so its net velocity change
+    (zero) is shifted by nothing. The spreading is discrete (which impact reaches which
+    body); the clock itself is the differentiable t_hit of that impact.
+    """
+    n = fixed.shape[0]
+    idx = jnp.arange(t_hit.shape[0])
+    t = jnp.where(struck, jax.lax.stop_gradient(t_hit), jnp.inf)
+    first = jnp.minimum(jax.ops.segment_min(t, a, n), jax.ops.segment_min(t, b, n))
+
+    def source(clock, offer, body):  # per body: the contact whose clock it takes (-1: none)
+        return jax.ops.segment_max(jnp.where(offer & (t == clock[body]), idx, -1), body, n)
+
+    src = jnp.maximum(source(first, struck, a), source(first, struck, b))
+    is_struck = src >= 0
+    live = carrying & ~fixed[a] & ~fixed[b]
+
+    def spread(carry):
+        clock, src, _ = carry
+        to_a, to_b = jnp.where(live, clock[b], jnp.inf), jnp.where(live, clock[a], jnp.inf)
+        best = jnp.minimum(jax.ops.segment_min(to_a, a, n), jax.ops.segment_min(to_b, b, n))
+        take = ~is_struck & (best < clock)
+        via_a = jax.ops.segment_max(jnp.where(live & (to_a == best[a]), src[b], -1), a, n)
+        via_b = jax.ops.segment_max(jnp.where(live & (to_b == best[b]), src[a], -1), b, n)
+        return (jnp.where(take, best, clock), jnp.where(take, jnp.maximum(via_a, via_b), src), jnp.any(take))
+
+    _, src, _ = jax.lax.while_loop(lambda c: c[2], spread, (jnp.where(is_struck, first, jnp.inf), src, True))
+    return jnp.where(src >= 0, t_hit[jnp.maximum(src, 0)], 0.0)

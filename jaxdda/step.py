@@ -16,7 +16,8 @@ from jaxdda.contact.detect import detect
 from jaxdda.contact.keys import lookup
 from jaxdda.contact.kinematics import (apply_jacobian, apply_jacobian_t, clockwise, gap_change, gap_frame,
                                        jacobians)
-from jaxdda.integrate import common_impact_time, free_displacement, impact_time, matvec, newmark_velocity
+from jaxdda.integrate import (common_impact_time, free_displacement, impact_clock, impact_time, matvec,
+                              newmark_velocity)
 from jaxdda.solver import pc
 from jaxdda.solver.sets import ContactSets
 from jaxdda.types import NO_JOINT, POLYGON, ContactReport, Contacts, Model, Params, State, StepInfo
@@ -122,21 +123,33 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     # bounce. Cohesion and cement are finite forces: they give no impulse.
     p0 = _warm_start(state.contact_key, state.contact_force, c.key)
     sustained = (p0[:, 0] > 0) | cemented
-    accel = 2.0 * (free_displacement(k_inv, mass, load, vel, dt) - vel * dt) / dt ** 2
+    # The acceleration towards an impact includes last step's contact forces: a disk
+    # falling onto a resting column meets a column held up by the floor, not one that
+    # falls with it (the relative acceleration, and so t* and v(t*), would be wrong).
+    accel = 2.0 * (free_displacement(k_inv, mass, load, vel, dt) + matvec(k_inv, apply_jacobian_t(jac, c, p0, n))
+                   - vel * dt) / dt ** 2
     v_rel, a_rel = apply_jacobian(jac, c, vel), apply_jacobian(jac, c, accel)
     t_hit, hits = impact_time(gap0, v_rel[:, 0], a_rel[:, 0], dt)
     t_hit = jnp.where(hits & ~sustained, t_hit, 0.0)
     t_hit = common_impact_time(t_hit, c.valid & hits & ~sustained, c.a, c.b, n, dt)
     v_hit = v_rel + a_rel * t_hit[:, None]
-    impacting = c.valid & ((hits & (v_hit[:, 0] < 0)) | sustained)
-    bounce = jnp.where(sustained, 0.0, restitution)
+    # A closed contact (gap within the margin d0) that does not approach takes part as a
+    # plain constraint, v+_n >= 0: an impulse passes through a touching chain (B hits A
+    # touching C: with e = 0 all three move on at one speed) instead of A being driven
+    # into C and pushed back out by the position-level solve.
+    approaching = hits & (v_hit[:, 0] < 0)
+    closed = gap0 <= params.margin
+    impacting = c.valid & (approaching | sustained | closed)
+    bounce = jnp.where(sustained | ~approaching, 0.0, restitution)
     b_imp = v_hit.at[:, 0].multiply(1.0 + bounce)
     op_m, diag_m = _flexibility(jac, c, m_inv)
     zero = jnp.zeros_like(gap0)
     imp_sets = sets._replace(enabled=impacting, cohesion=zero, tension=zero)
     imp = pc.solve(_apply_w, op_m, diag_m, b_imp, imp_sets, jnp.zeros_like(b_imp), params.tol, params.max_iter, momentum)
     v_star = vel + matvec(m_inv, apply_jacobian_t(jac, c, imp.force, n))
-    shift = -matvec(m_inv, apply_jacobian_t(jac, c, imp.force * t_hit[:, None], n))
+    struck = c.valid & approaching & ~sustained
+    clock = impact_clock(t_hit, struck, impacting & (imp.force[:, 0] > 0), c.a, c.b, model.fixed)
+    shift = -(v_star - vel) * clock[:, None]
 
     # 2. Contact forces over the step (eq. 39); gap evaluated exactly at the predictor.
     # The force acts along the normal of the mid-step configuration: normal to the chord
