@@ -1,5 +1,16 @@
 """jaxdda: differentiable 2D discontinuous deformation analysis (PB-DDA) in JAX."""
-import jax
+import os
+
+# XLA:CPU (jaxlib 0.10) can stall for good running a vmapped scan of while loops (every
+# batched rollout of 512 or more scenarios here) under its concurrency-optimized
+# scheduler; with it off they run, and no slower. XLA reads the flag when its CPU backend
+# starts, so jaxdda must be imported before the first JAX computation. A value the user
+# set is kept. See docs/design.md, "Monte Carlo and devices".
+SCHEDULER_FLAG = "--xla_cpu_enable_concurrency_optimized_scheduler"
+if SCHEDULER_FLAG not in os.environ.get("XLA_FLAGS", ""):
+    os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {SCHEDULER_FLAG}=false".strip()
+
+import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)  # forces of 1e7 N next to errors of 1e-3 N
 

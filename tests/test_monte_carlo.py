@@ -148,6 +148,24 @@ def test_sharded_over_forced_host_devices_matches_one_device():
     assert out.stdout.strip().endswith("ok")
 
 
+def test_a_batch_of_1024_scenarios_runs_to_the_end():
+    # XLA:CPU's concurrency-optimized scheduler stalled such a batch for good (5 of 5
+    # runs); jaxdda turns it off at import (jaxdda/__init__.py). In a fresh process, as a
+    # user would run it, under a time limit.
+    code = textwrap.dedent("""
+        import numpy as np, jaxdda
+        v = np.stack([np.linspace(0.5, 3.0, 1024), np.zeros(1024)], 1)
+        mc = jaxdda.monte_carlo(jaxdda.examples.get("rockfall"), 20, velocity=v, batch_size=1024, progress=False)
+        assert len(mc) == 1024 and mc.converged.all() and np.isfinite(mc["runout"]).all()
+        print("ok")
+    """)
+    env = dict(os.environ)
+    env.pop("XLA_FLAGS", None)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
+    assert out.returncode == 0, out.stderr[-3000:]
+    assert out.stdout.strip().endswith("ok")
+
+
 @pytest.mark.parametrize("kwargs, message", [
     (dict(velocity=np.zeros((3, 5))), "velocity must be"),
     (dict(velocity=np.full((2, 2), np.nan)), "not finite"),
