@@ -126,8 +126,8 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     # The acceleration towards an impact includes last step's contact forces: a disk
     # falling onto a resting column meets a column held up by the floor, not one that
     # falls with it (the relative acceleration, and so t* and v(t*), would be wrong).
-    accel = 2.0 * (free_displacement(k_inv, mass, load, vel, dt) + matvec(k_inv, apply_jacobian_t(jac, c, p0, n))
-                   - vel * dt) / dt ** 2
+    push0 = matvec(k_inv, apply_jacobian_t(jac, c, p0, n))  # displacement by last step's forces
+    accel = 2.0 * (free_displacement(k_inv, mass, load, vel, dt) + push0 - vel * dt) / dt ** 2
     v_rel, a_rel = apply_jacobian(jac, c, vel), apply_jacobian(jac, c, accel)
     t_hit, hits = impact_time(gap0, v_rel[:, 0], a_rel[:, 0], dt)
     t_hit = jnp.where(hits & ~sustained, t_hit, 0.0)
@@ -166,10 +166,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
         gap_mid, normal_mid, point_mid = gap_frame(c, mid_centroid, mid_rotation)
         return jacobians(c, normal_mid, point_mid, gap_mid, mid_centroid), normal_mid, point_mid
 
-    def predictor(frame):
-        return d_base + matvec(k_inv, apply_jacobian_t(frame, c, p0, n))
-
-    d_pred = predictor(mid_frame(predictor(jac))[0])
+    d_pred = d_base + matvec(k_inv, apply_jacobian_t(mid_frame(d_base + push0)[0], c, p0, n))
     gap_pred = gap_at(d_pred)
     jac_mid, normal_mid, point_mid = mid_frame(d_pred)
     # G(p) = W p + b: the gap at the predictor plus the linear change from it; shear and
