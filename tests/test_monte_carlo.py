@@ -126,6 +126,15 @@ def test_scenes_of_different_sizes_batch_by_padding():
     assert np.linalg.norm(pulled) < 1e-9
 
 
+def _run_fresh(code, timeout):
+    """Run ``code`` in a fresh Python (XLA_FLAGS unset); it must print "ok"."""
+    env = dict(os.environ)
+    env.pop("XLA_FLAGS", None)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=timeout)
+    assert out.returncode == 0, out.stderr[-3000:]
+    assert out.stdout.strip().endswith("ok")
+
+
 def test_sharded_over_forced_host_devices_matches_one_device():
     code = textwrap.dedent("""
         import os
@@ -141,11 +150,7 @@ def test_sharded_over_forced_host_devices_matches_one_device():
             np.testing.assert_allclose(four[k], one[k], rtol=0, atol=1e-9)
         print("ok")
     """)
-    env = dict(os.environ)
-    env.pop("XLA_FLAGS", None)
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=600)
-    assert out.returncode == 0, out.stderr[-3000:]
-    assert out.stdout.strip().endswith("ok")
+    _run_fresh(code, timeout=600)
 
 
 def test_a_batch_of_1024_scenarios_runs_to_the_end():
@@ -159,11 +164,7 @@ def test_a_batch_of_1024_scenarios_runs_to_the_end():
         assert len(mc) == 1024 and mc.converged.all() and np.isfinite(mc["runout"]).all()
         print("ok")
     """)
-    env = dict(os.environ)
-    env.pop("XLA_FLAGS", None)
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
-    assert out.returncode == 0, out.stderr[-3000:]
-    assert out.stdout.strip().endswith("ok")
+    _run_fresh(code, timeout=300)
 
 
 @pytest.mark.parametrize("kwargs, message", [
