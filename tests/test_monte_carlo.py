@@ -16,6 +16,7 @@ import pytest
 
 import jaxdda
 from jaxdda.observe import Observable
+from jaxdda.step import step
 from jaxdda.simulate import with_capacity
 from jaxdda.types import Capacities
 
@@ -154,9 +155,9 @@ def test_sharded_over_forced_host_devices_matches_one_device():
 
 
 def test_a_batch_of_1024_scenarios_runs_to_the_end():
-    # XLA:CPU's concurrency-optimized scheduler stalled such a batch for good (5 of 5
-    # runs); jaxdda turns it off at import (jaxdda/__init__.py). In a fresh process, as a
-    # user would run it, under a time limit.
+    # Two batched LAPACK kernels side by side stalled such a batch for good on 2 cores
+    # (docs/design.md, "No LAPACK in the step"). In a fresh process, as a user would run
+    # it, under a time limit.
     code = textwrap.dedent("""
         import numpy as np, jaxdda
         v = np.stack([np.linspace(0.5, 3.0, 1024), np.zeros(1024)], 1)
@@ -165,6 +166,14 @@ def test_a_batch_of_1024_scenarios_runs_to_the_end():
         print("ok")
     """)
     _run_fresh(code, timeout=300)
+
+
+def test_the_step_calls_no_lapack_kernel():
+    # Batched LAPACK kernels wait on XLA:CPU's thread pool and deadlock side by side.
+    scene = jaxdda.examples.get("rockfall")
+    batch = jax.tree.map(lambda x: jnp.stack([x, x]), scene.state)
+    text = jax.jit(jax.vmap(lambda s: step(scene.model, s, scene.params))).lower(batch).as_text()
+    assert "custom_call" not in text
 
 
 @pytest.mark.parametrize("kwargs, message", [

@@ -86,13 +86,21 @@ def updated_stretch(stretch: jax.Array, rotation: jax.Array, turn: jax.Array, st
     return stretch + back @ e @ rotation_matrix(rotation) @ stretch
 
 
+def spectral_norm_2x2(a: jax.Array, det: jax.Array) -> jax.Array:
+    """Largest singular value of each 2x2 matrix in closed form (no LAPACK SVD):
+    s^2 = (F + sqrt(F^2 - 4 det^2)) / 2 with F the squared Frobenius norm."""
+    f = jnp.sum(a * a, axis=(-2, -1))
+    return jnp.sqrt(0.5 * (f + jnp.sqrt(jnp.maximum(f * f - 4.0 * det * det, 0.0))))
+
+
 def current_shape(model, stretch: jax.Array):
     """The model with each body's local geometry in its current shape S X (vertices, load
     points, radii): contacts found in it move rigidly plus the step's strain increment.
     Exact (unchanged) for rigid bodies, whose S is I."""
-    scale = jnp.sqrt(jnp.abs(jnp.linalg.det(stretch)))  # a particle's S is a rotation-scaling
-    # Only detection reads the bound radius (no derivative; the SVD's is NaN at S = I).
-    norm = jax.lax.stop_gradient(jnp.linalg.norm(stretch, ord=2, axis=(-2, -1)))
+    det = jnp.linalg.det(stretch)
+    scale = jnp.sqrt(jnp.abs(det))  # a particle's S is a rotation-scaling
+    # Only detection reads the bound radius (no derivative: it is not smooth at S = I).
+    norm = jax.lax.stop_gradient(spectral_norm_2x2(stretch, det))
     return dataclasses.replace(
         model,
         local_vertices=jnp.einsum("nij,nvj->nvi", stretch, model.local_vertices),

@@ -16,6 +16,26 @@ def mass_matrix(model: Model, params: Params, state: State) -> jax.Array:
     return consistent_mass(params.density, model.area, moments)
 
 
+def spd_inverse(a: jax.Array) -> jax.Array:
+    """Inverse of a batch (..., n, n) of small symmetric positive definite matrices by n
+    Gauss-Jordan sweeps, without pivoting (stable for SPD: every pivot is a positive Schur
+    complement).
+
+    Plain array code, not LAPACK: jaxlib's batched LAPACK kernels split their batch over
+    XLA:CPU's intra-op thread pool and wait for it, so two of them running side by side on
+    a 2-thread pool deadlock (docs/design.md, "Monte Carlo and devices")."""
+    n = a.shape[-1]
+    for k in range(n):
+        pivot = a[..., k, k][..., None]
+        row = a[..., k, :] / pivot                    # row k of the eliminated matrix
+        col = a[..., :, k]
+        a = a - col[..., :, None] * row[..., None, :]
+        a = a.at[..., k, :].set(row)
+        a = a.at[..., :, k].set(-col / pivot)
+        a = a.at[..., k, k].set(1.0 / pivot[..., 0])
+    return a
+
+
 def inverse_on_subspace(a: jax.Array, projector: jax.Array) -> jax.Array:
     """P (P A P + I - P)^-1 P: the inverse of A restricted to range(P), zero elsewhere.
 
@@ -23,7 +43,7 @@ def inverse_on_subspace(a: jax.Array, projector: jax.Array) -> jax.Array:
     """
     eye = jnp.eye(a.shape[-1])
     reg = projector @ a @ projector + eye - projector
-    return projector @ jnp.linalg.inv(reg) @ projector
+    return projector @ spd_inverse(reg) @ projector
 
 
 def external_load(model: Model, params: Params, centroid: jax.Array, rotation: jax.Array,

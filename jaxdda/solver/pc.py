@@ -141,7 +141,7 @@ GMRES_TOL, GMRES_RESTART, GMRES_CYCLES = 1e-13, 60, 20
 
 def _gmres(matvec, rhs):
     return jax.scipy.sparse.linalg.gmres(matvec, rhs, tol=GMRES_TOL, atol=0.0, restart=GMRES_RESTART,
-                                         maxiter=GMRES_CYCLES)[0]
+                                         maxiter=GMRES_CYCLES, solve_method="incremental")[0]
 
 
 @partial(jax.custom_jvp, nondiff_argnums=(0,))
