@@ -15,16 +15,19 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from jaxdda import groups
+from jaxdda.groups import Flexibility
+
 
 def matvec(blocks: jax.Array, x: jax.Array) -> jax.Array:
     """Per-body (N, 6, 6) @ (N, 6)."""
     return jnp.einsum("nij,nj->ni", blocks, x)
 
 
-def free_displacement(k_inv: jax.Array, mass: jax.Array, load: jax.Array, velocity: jax.Array,
+def free_displacement(k_inv: Flexibility, mass: jax.Array, load: jax.Array, velocity: jax.Array,
                       dt: jax.Array) -> jax.Array:
-    """d_f = K_eff^-1 (f + 2 M v / dt): the step's displacement without contact (eq. 23)."""
-    return matvec(k_inv, load + 2.0 * matvec(mass, velocity) / dt)
+    """d_f = K_eff^-1 (f + 2 M v / dt): the step's displacement without contact (eqs. 23, 110)."""
+    return groups.apply(k_inv, load + 2.0 * matvec(mass, velocity) / dt)
 
 
 def newmark_velocity(d: jax.Array, velocity: jax.Array, dt: jax.Array, projector: jax.Array) -> jax.Array:
@@ -40,17 +43,19 @@ def newmark_velocity(d: jax.Array, velocity: jax.Array, dt: jax.Array, projector
 SIMULTANEITY = 1e-6
 
 
-def impact_time(gap: jax.Array, vn: jax.Array, an: jax.Array, dt: jax.Array):
+def impact_time(gap: jax.Array, vn: jax.Array, an: jax.Array, dt: jax.Array, touch: jax.Array):
     """Earliest t >= 0 with gap + vn t + an t^2 / 2 = 0 (clipped to dt), and whether it
     falls within the step (up to dt * (1 + SIMULTANEITY)).
 
-    Closed contacts (gap <= 0) hit at t = 0. Uses the cancellation-free root 2 g / (-v + sqrt(.)).
+    Closed contacts (gap <= ``touch``, the round-off of the gap) hit at t = 0: a block
+    placed on a slope touches it, it does not fall 1e-15 m onto it. Uses the
+    cancellation-free root 2 g / (-v + sqrt(.)).
     """
     disc = vn * vn - 2.0 * an * gap
     denom = -vn + jnp.where(disc > 0, jnp.sqrt(jnp.where(disc > 0, disc, 1.0)), 0.0)  # no NaN gradient at 0
     root_ok = (disc >= 0) & (denom > 0)
     t = jnp.where(root_ok, 2.0 * gap / jnp.where(root_ok, denom, 1.0), jnp.inf)
-    t = jnp.where(gap <= 0, 0.0, t)
+    t = jnp.where(gap <= touch, 0.0, t)
     return jnp.minimum(t, dt), t <= dt * (1.0 + SIMULTANEITY)
 
 

@@ -53,6 +53,12 @@ class Trajectory:
     def n_joints(self) -> int:
         return int(np.sum(np.asarray(self.scene.model.joint_key) >= 0))
 
+    @property
+    def connector_force(self) -> np.ndarray:
+        """(S, K, 4) per connector at the end of each step: axial force (tension +), shear
+        force, and the bending moments at ends a and b (beams; connectors.connector_forces)."""
+        return self.info.connector_force
+
     def force_between(self, i: int, j: int) -> np.ndarray:
         """(S, 2): the resultant contact force that body i exerts on body j in each step
         (global frame, step average: impact impulses count as impulse / dt)."""

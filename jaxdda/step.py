@@ -9,8 +9,10 @@ import dataclasses
 import jax
 import jax.numpy as jnp
 
+from jaxdda import groups
 from jaxdda.bodies.elastic import current_shape, elastic_matrix, stiffness, stress_load, updated_stretch
 from jaxdda.bodies.mass import external_load, inverse_on_subspace, mass_matrix
+from jaxdda.connectors import connector_forces, connector_terms
 from jaxdda.contact.adjoint import adjoint_partner
 from jaxdda.contact.detect import detect
 from jaxdda.contact.keys import lookup
@@ -18,6 +20,7 @@ from jaxdda.contact.kinematics import (apply_jacobian, apply_jacobian_t, clockwi
                                        jacobians)
 from jaxdda.integrate import (common_impact_time, free_displacement, impact_clock, impact_time, matvec,
                               newmark_velocity)
+from jaxdda.groups import Flexibility
 from jaxdda.solver import pc
 from jaxdda.solver.sets import ContactSets
 from jaxdda.types import NO_JOINT, POLYGON, ContactReport, Contacts, Model, Params, State, StepInfo
@@ -32,13 +35,15 @@ def _warm_start(prev_key: jax.Array, prev_force: jax.Array, key: jax.Array) -> j
 def _apply_w(operand, p: jax.Array) -> jax.Array:
     """W p = J inv J^T p for operand (jac, contacts, inv): the contact flexibility."""
     jac, c, inv = operand
-    return apply_jacobian(jac, c, matvec(inv, apply_jacobian_t(jac, c, p, inv.shape[0])))
+    return apply_jacobian(jac, c, groups.apply(inv, apply_jacobian_t(jac, c, p, inv.single.shape[0])))
 
 
-def _flexibility(jac: jax.Array, c: Contacts, inv: jax.Array):
-    """The operand of ``_apply_w`` for W = J inv J^T, and W's diagonal (C, 3)."""
-    diag = (jnp.einsum("cij,cjk,cik->ci", jac[:, 0], inv[c.a], jac[:, 0])
-            + jnp.einsum("cij,cjk,cik->ci", jac[:, 1], inv[c.b], jac[:, 1]))
+def _flexibility(jac: jax.Array, c: Contacts, inv: Flexibility):
+    """The operand of ``_apply_w`` for W = J inv J^T, and W's diagonal (C, 3) (with the
+    coupling of a contact's two bodies where they share a dof group, eq. 112)."""
+    diag = (jnp.einsum("cij,cjk,cik->ci", jac[:, 0], groups.block(inv, c.a, c.a), jac[:, 0])
+            + jnp.einsum("cij,cjk,cik->ci", jac[:, 1], groups.block(inv, c.b, c.b), jac[:, 1])
+            + 2.0 * jnp.einsum("cij,cjk,cik->ci", jac[:, 0], groups.block(inv, c.a, c.b), jac[:, 1]))
     return (jac, c, inv), diag
 
 
@@ -88,12 +93,18 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     model = current_shape(base, state.stretch)  # local geometry in each body's current shape
     volume = base.area * jnp.abs(jnp.linalg.det(state.stretch))
     mass = mass_matrix(base, params, state)
-    m_inv = inverse_on_subspace(mass, proj)
+    m_inv = groups.independent(inverse_on_subspace(mass, proj))  # connectors pass no impulse
     stiff = stiffness(elastic_matrix(params.young, params.poisson, base.plane_strain), volume)  # rigid: 0
-    k_inv = inverse_on_subspace(stiff + 2.0 * mass / dt ** 2, proj)
     centroid = state.centroid
     load = (external_load(model, params, centroid, state.rotation, state.time + dt)
             + stress_load(state.stress, volume))
+    coupling = None
+    if model.connector_a.shape[0]:  # connectors: their load, and their stiffness in K_eff (eqs. 80-92)
+        conn_load, conn_stiff = connector_terms(base, params, state)
+        ends = jnp.stack([model.connector_a, model.connector_b], 1)
+        load = load + jax.ops.segment_sum(conn_load.reshape(-1, conn_load.shape[-1]), ends.reshape(-1), n)
+        coupling = (ends, conn_stiff)
+    k_inv = groups.grouped(stiff + 2.0 * mass / dt ** 2, proj, model, coupling)
     vel = params.dynamic * matvec(proj, state.velocity)  # static analysis: each step starts at rest
 
     # Detection is discrete (which pairs to test): no derivative flows through it.
@@ -126,10 +137,13 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     # The acceleration towards an impact includes last step's contact forces: a disk
     # falling onto a resting column meets a column held up by the floor, not one that
     # falls with it (the relative acceleration, and so t* and v(t*), would be wrong).
-    push0 = matvec(k_inv, apply_jacobian_t(jac, c, p0, n))  # displacement by last step's forces
+    push0 = groups.apply(k_inv, apply_jacobian_t(jac, c, p0, n))  # displacement by last step's forces
     accel = 2.0 * (free_displacement(k_inv, mass, load, vel, dt) + push0 - vel * dt) / dt ** 2
     v_rel, a_rel = apply_jacobian(jac, c, vel), apply_jacobian(jac, c, accel)
-    t_hit, hits = impact_time(gap0, v_rel[:, 0], a_rel[:, 0], dt)
+    # A gap within round-off of the coordinates it comes from is a touch (64 ulp).
+    reach = jnp.maximum(jnp.max(jnp.abs(state.origin[c.a]), -1), jnp.max(jnp.abs(state.origin[c.b]), -1))
+    touch = 64.0 * jnp.finfo(gap0.dtype).eps * (reach + model.bound_radius[c.a] + model.bound_radius[c.b])
+    t_hit, hits = impact_time(gap0, v_rel[:, 0], a_rel[:, 0], dt, touch)
     t_hit = jnp.where(hits & ~sustained, t_hit, 0.0)
     t_hit = common_impact_time(t_hit, c.valid & hits & ~sustained, c.a, c.b, n, dt)
     v_hit = v_rel + a_rel * t_hit[:, None]
@@ -146,7 +160,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     zero = jnp.zeros_like(gap0)
     imp_sets = sets._replace(enabled=impacting, cohesion=zero, tension=zero)
     imp = pc.solve(_apply_w, op_m, diag_m, b_imp, imp_sets, jnp.zeros_like(b_imp), params.tol, params.max_iter, momentum)
-    v_star = vel + matvec(m_inv, apply_jacobian_t(jac, c, imp.force, n))
+    v_star = vel + groups.apply(m_inv, apply_jacobian_t(jac, c, imp.force, n))
     struck = c.valid & approaching & ~sustained
     clock = impact_clock(t_hit, struck, impacting & (imp.force[:, 0] > 0), c.a, c.b, model.fixed)
     shift = -(v_star - vel) * clock[:, None]
@@ -166,12 +180,17 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
         gap_mid, normal_mid, point_mid = gap_frame(c, mid_centroid, mid_rotation)
         return jacobians(c, normal_mid, point_mid, gap_mid, mid_centroid), normal_mid, point_mid
 
-    d_pred = d_base + matvec(k_inv, apply_jacobian_t(mid_frame(d_base + push0)[0], c, p0, n))
+    d_pred = d_base + groups.apply(k_inv, apply_jacobian_t(mid_frame(d_base + push0)[0], c, p0, n))
     gap_pred = gap_at(d_pred)
     jac_mid, normal_mid, point_mid = mid_frame(d_pred)
-    # G(p) = W p + b: the gap at the predictor plus the linear change from it; shear and
-    # rolling gaps are the relative motion over the step.
-    b_con = apply_jacobian(jac_mid, c, d_base)
+    # G(p) = W p + b: the gap at the predictor plus the linear change from it. Shear and
+    # rolling gaps are taken at velocity level: (dt / 2) times the relative velocity at
+    # the step's end, v+ = 2 (d - shift) / dt - v* (Moreau's Coulomb law). A contact that
+    # sticks then ends the step at rest, not at -v: with the paper's relative motion over
+    # the step, a block that stops by friction keeps a velocity that flips sign every
+    # step (d = 0 gives v+ = -v). The sign of the two agrees whenever the motion does
+    # not reverse inside the step, so sliding is unchanged.
+    b_con = apply_jacobian(jac_mid, c, d_base - shift - 0.5 * dt * v_star)
     b_con = b_con.at[:, 0].set(gap_pred - apply_jacobian(jac_mid, c, d_pred - d_base)[:, 0])
     op_k, diag_k = _flexibility(jac_mid, c, k_inv)
     force_scale = momentum / dt
@@ -194,7 +213,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     tension = jax.ops.segment_sum(jnp.maximum(-con.force[:, 0], 0.0), joint_slot, n_joints)
 
     # 4. Integrate: Newmark velocity from d; geometry from d plus the impact shift.
-    d_geo = d_base + matvec(k_inv, apply_jacobian_t(jac_mid, c, con.force, n))
+    d_geo = d_base + groups.apply(k_inv, apply_jacobian_t(jac_mid, c, con.force, n))
     new_vel = newmark_velocity(d_geo - shift, v_star, dt, proj)
     strain = d_geo[:, 3:]
     new_state = State(
@@ -231,6 +250,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
         max_penetration=jnp.maximum(0.0, -jnp.min(jnp.where(c.valid, gap0, 0.0))),
         joint_tension=tension,
         joint_broken=(joint_integrity <= 0) & (model.joint_key != NO_JOINT),
+        connector_force=connector_forces(base, params, new_state),
         contacts=report,
     )
     return new_state, info

@@ -68,6 +68,16 @@ class Model:
     joint_a: jax.Array  # (J,) int32 the joint's two bodies (for reports)
     joint_b: jax.Array  # (J,) int32
     joint_point: jax.Array  # (J, 2) where the joint was at t = 0
+    connector_kind: jax.Array  # (K,) int32 BOLT, SPRING or BEAM (connectors.py)
+    connector_a: jax.Array  # (K,) int32 the two bodies a connector ties
+    connector_b: jax.Array  # (K,) int32
+    connector_pa: jax.Array  # (K, 2) attachment point on body a, body-local (moves with it)
+    connector_pb: jax.Array  # (K, 2) attachment point on body b, body-local
+    connector_length: jax.Array  # (K,) rest length l0
+    connector_chord0: jax.Array  # (K, 2) unit direction from a's to b's attachment point at t = 0
+    group_members: jax.Array  # (G, S) int32 bodies of each dof group (tied by connectors; -1: empty slot)
+    body_group: jax.Array  # (N,) int32 a body's dof group (-1: independent)
+    body_slot: jax.Array  # (N,) int32 its slot in that group
     capacity: Capacities = static_field()
     n_bodies: int = static_field()
     max_vertices: int = static_field()
@@ -95,6 +105,10 @@ class Params:
     margin: jax.Array  # () base contact detection distance d0 (added to the swept distance)
     rupture_width: jax.Array  # () 0: a joint breaks outright; w > 0: smoothed rupture for calibration
     # (the joint keeps 1 - e / w of its strength when it lacks a force e to stay closed; docs/design.md)
+    connector_axial: jax.Array  # (K,) axial stiffness: a spring's k, a bolt's or beam's E A / l0 (N/m)
+    connector_bending: jax.Array  # (K,) a beam's bending stiffness E I (N m^2; 0: no bending)
+    connector_shear: jax.Array  # (K,) a beam's shear deformation term b of eq. 89 (0: Euler-Bernoulli)
+    connector_pretension: jax.Array  # (K,) axial force at the rest length (N, tension +)
 
 
 @pytree_dataclass
@@ -174,6 +188,7 @@ class StepInfo:
     max_penetration: jax.Array  # () largest overlap at the start of the step (>= 0)
     joint_tension: jax.Array  # (J,) tension carried by each cemented joint (0 once broken or apart)
     joint_broken: jax.Array  # (J,) bool: broken at the end of this step
+    connector_force: jax.Array  # (K, 4) axial (tension +), shear, moment at end a, at end b, at the step's end
     contacts: ContactReport
 
 

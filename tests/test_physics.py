@@ -88,6 +88,29 @@ def test_block_on_incline_slides_or_sticks(mu):
     assert np.abs(run.rotation[:, 0]).max() < 1e-10
 
 
+def test_block_stopped_by_friction_is_at_rest_where_it_stops():
+    # v0 down a 30 degree incline, mu = 0.8: it decelerates at a = g (mu cos - sin) and
+    # stops after v0^2 / (2 a), then stays at rest (not at a velocity flipping sign).
+    # The stopping step ends at rest: its displacement v dt / 2 exceeds the exact one by
+    # at most a dt^2 / 8.
+    th, mu, v0, dt = math.radians(30.0), 0.8, 1.0, 0.01
+    sb = jaxdda.SceneBuilder(dt=dt, gravity=(-G * math.sin(th), -G * math.cos(th)))
+    sb.add_material("rock", friction=mu, restitution=0.0)
+    sb.add_polygon(vertices=[(0, 0), (1, 0), (1, 1), (0, 1)], density=2.0, material="rock", velocity=(-v0, 0.0))
+    floor(sb, "rock", x0=-5.0, x1=5.0)
+    run = jaxdda.simulate(sb.build(), 100)
+    a = G * (mu * math.cos(th) - math.sin(th))
+    stop = v0 / a
+    t = run.time
+    moving = t < stop - dt
+    np.testing.assert_allclose(run.centroid[moving, 0, 0] - 0.5, -v0 * t[moving] + 0.5 * a * t[moving] ** 2,
+                               atol=1e-10, rtol=0)
+    rest = t > stop + dt
+    assert abs(run.centroid[-1, 0, 0] - 0.5 + v0 ** 2 / (2 * a)) <= a * dt ** 2 / 8
+    assert np.abs(run.velocity[rest, 0]).max() < 1e-9
+    assert np.abs(np.diff(run.centroid[rest, 0], axis=0)).max() < 1e-12
+
+
 def test_disk_rolls_down_incline_without_slipping():
     th = math.radians(20.0)
     # the friction force is checked to 1e-10: ask the solver for a residual well below it

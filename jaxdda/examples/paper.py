@@ -5,6 +5,8 @@ times larger and no weight of its own.
 """
 from __future__ import annotations
 
+import numpy as np
+
 from jaxdda.scene.builder import Scene, SceneBuilder
 
 G = 10.0
@@ -120,4 +122,38 @@ def cemented_pull(heavy: bool = False, *, height: float = 0.0, force: float = 10
     b2 = sb.add_polygon(vertices=_rect(0.0, -1.0, 2.0, 1.0), density=1000.0, material="cement")
     _support(sb, heavy, 1000.0, vertices=_rect(-2.0, -2.0, 0.0, 2.0), material="cement")
     sb.add_load(b2, force=(force, 0.0), at=(1.0, height), rate=(rate, 0.0))
+    return sb.build()
+
+
+def _star(center, outer: float, inner: float, points: int = 5):
+    """A concave star polygon with ``points`` tips at ``outer``, one pointing up."""
+    angle = np.pi / 2 + np.pi * np.arange(2 * points) / points
+    radius = np.where(np.arange(2 * points) % 2 == 0, outer, inner)
+    return np.stack([center[0] + radius * np.cos(angle), center[1] + radius * np.sin(angle)], -1)
+
+
+def particle_chain(heavy: bool = False, *, height: float = 3.0, stiffness: float = 0.5e10,
+                   friction: float = 0.5, restitution: float = 0.0) -> Scene:
+    """7.10: a star block, 9 disks r = 2 and a star block in a horizontal line, joined
+    centre to centre by 10 springs of ``stiffness``, released with the middle disk
+    ``height`` above a fixed disk R = 8; first touch at t = sqrt(2 H / g) (step 155).
+    The paper gives no spacing, density or contact law: centres 4.5 apart, density 2500,
+    ``friction`` 0.5 and ``restitution`` 0 (so the chain comes to rest). Body 5 is the
+    middle disk, body 11 the fixed disk."""
+    sb = SceneBuilder(dt=0.005, gravity=(0.0, -G), name="paper-7.10")
+    sb.add_material("chain", friction=friction, restitution=restitution)
+    y = 8.0 + height + 2.0
+    xs = 4.5 * (np.arange(11) - 5.0)
+    bodies = []
+    for k, x in enumerate(xs):
+        if k in (0, 10):
+            bodies.append(sb.add_polygon(_star((x, y), 2.0, 0.9), density=2500.0, material="chain"))
+        else:
+            bodies.append(sb.add_disk(center=(x, y), radius=2.0, density=2500.0, material="chain"))
+    for k in range(10):
+        sb.add_spring(bodies[k], bodies[k + 1], (xs[k], y), (xs[k + 1], y), stiffness=stiffness)
+    if heavy:
+        sb.add_disk(center=(0.0, 0.0), radius=8.0, density=HEAVY * 2500.0, gravity=False, material="chain")
+    else:
+        sb.add_disk(center=(0.0, 0.0), radius=8.0, density=2500.0, fixed=True, material="chain")
     return sb.build()

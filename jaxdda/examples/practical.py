@@ -107,3 +107,33 @@ def pile(heavy: bool = False, *, n: int = 100, friction: float = 0.0, restitutio
         sb.add_disk(center=((i + 0.5) * pitch, (j + 0.5) * pitch), radius=float(radii[k]), density=1000.0,
                     material="grain")
     return sb.build()
+
+
+def bolted_slope(heavy: bool = False, *, bolts: bool = True, angle: float = 35.0, friction: float = 0.5,
+                 blocks: int = 3, dt: float = 0.01) -> Scene:
+    """A jointed rock slope: ``blocks`` 2 x 1 m blocks (density 2600) in a row on a fixed
+    rock mass whose face dips at ``angle`` degrees, on a joint of ``friction``. Each
+    block is held by a rock bolt (E = 200 GPa, 25 mm: A = 4.9e-4 m^2) from the middle of
+    its top face 3 m into the rock mass, inclined 45 degrees against sliding. Without
+    ``bolts`` the blocks slide together at g (sin a - mu cos a) once tan a > mu; with them
+    they stay put. Bodies 0 .. blocks-1 are the blocks (the lowest first), the last is
+    the rock mass."""
+    a = math.radians(angle)
+    down, out = np.array([math.cos(a), -math.sin(a)]), np.array([math.sin(a), math.cos(a)])
+    length = 2.0 * blocks + 4.0
+    sb = SceneBuilder(dt=dt, gravity=(0.0, -G), name="bolted-slope")
+    sb.add_material("rock", friction=friction, restitution=0.0)
+    tops, ids = [], []
+    for k in range(blocks):
+        s0, s1 = length - 2.0 - 2.0 * (k + 1), length - 2.0 - 2.0 * k  # the lowest block first
+        corners = [s0 * down, s1 * down, s1 * down + out, s0 * down + out]
+        ids.append(sb.add_polygon([tuple(c) for c in corners], density=2600.0, material="rock"))
+        tops.append(0.5 * (s0 + s1) * down + out)
+    bottom = -length * math.sin(a) - 6.0
+    mass = sb.add_polygon([(0.0, 0.0), (0.0, bottom), (length * math.cos(a), bottom), tuple(length * down)],
+                          density=2600.0, fixed=True, material="rock")
+    if bolts:
+        into = -(out + down) / math.sqrt(2.0)  # 45 degrees into the rock, up the slope
+        for body, top in zip(ids, tops):
+            sb.add_bolt(body, mass, tuple(top), tuple(top + 3.0 * into), young=2e11, area=math.pi * 0.0125 ** 2)
+    return sb.build()

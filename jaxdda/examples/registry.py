@@ -13,9 +13,11 @@ _EXAMPLES = {
     "paper-7.6": (paper.block_pull, 100, "a block pulled over a base with cohesion shared by two corners"),
     "paper-7.7": (paper.disk_pull, 500, "a disk pulled over a frictional surface (rolling, slip)"),
     "paper-7.8": (paper.cemented_pull, 100, "a block pulled off a cemented interface"),
+    "paper-7.10": (paper.particle_chain, 1000, "a chain of disks and star blocks joined by springs, dropped on a disk"),
     "incline": (practical.incline, 100, "a block sliding down a 30 degree incline (friction)"),
     "rolling-disk": (practical.rolling_disk, 300, "a disk rolling to rest against rolling resistance"),
     "rockfall": (practical.rockfall, 600, "a rock rolling and sliding down a slope onto a flat run-out"),
+    "bolted-slope": (practical.bolted_slope, 300, "rock blocks on a joint steeper than its friction angle, held by bolts (bolts=False: they slide)"),
     "pile": (practical.pile, 300, "disks settling in a box (n=, friction=): the benchmark scene"),
 }
 

@@ -8,6 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxdda.bodies import geometry
+from jaxdda.connectors import BEAM, BOLT, SHEAR_FACTOR, SPRING, beam_coefficients
 from jaxdda.errors import SceneError
 from jaxdda.scene import cement, validate
 from jaxdda.scene.capacity import initial_capacities
@@ -76,6 +77,7 @@ class SceneBuilder:
         self._materials: dict[str, dict[str, float]] = {"default": dict(CONTACT_LAW)}
         self._loads: list[tuple[int, np.ndarray, np.ndarray, np.ndarray]] = []
         self._interfaces: dict[tuple[str, str], dict[str, float]] = {}
+        self._connectors: list[_Connector] = []
 
     # -- materials ---------------------------------------------------------------------
     def add_material(self, name: str, friction: float = 0.0, restitution: float = 1.0, *, cohesion: float = 0.0,
@@ -127,6 +129,52 @@ class SceneBuilder:
         self._loads.append((int(body), point - b.center, self._point(label, "force", force),
                             self._point(label, "rate", rate)))
         return len(self._loads) - 1
+
+    # -- connectors (paper section 5) --------------------------------------------------
+    def add_spring(self, body_a: int, body_b: int, at_a, at_b, stiffness: float, *, rest_length: float | None = None,
+                   pretension: float = 0.0) -> int:
+        """A spring of axial ``stiffness`` k (N/m) between the material points that are at
+        ``at_a`` on body_a and ``at_b`` on body_b at t = 0 (eqs. 85-86). Its force is
+        k (l - rest_length) + pretension along the line of the two points (tension +);
+        ``rest_length`` defaults to the initial distance. Returns the connector index."""
+        label = f"connector {len(self._connectors)} (spring)"
+        validate.check_positive(label, "stiffness", stiffness)
+        return self._connect(_Connector(SPRING, label, body_a, body_b, at_a, at_b, float(stiffness), 0.0, 0.0,
+                                        pretension, rest_length))
+
+    def add_bolt(self, body_a: int, body_b: int, at_a, at_b, young: float, area: float, *,
+                 pretension: float = 0.0) -> int:
+        """A rock bolt (link element, eqs. 74-84) of Young's modulus ``young`` (Pa) and
+        cross-section ``area`` (m^2) between the material points at ``at_a`` on body_a and
+        ``at_b`` on body_b at t = 0: axial stiffness E A / l, with l the initial length,
+        and an initial axial force ``pretension`` (N, tension +). Returns the connector index."""
+        label = f"connector {len(self._connectors)} (bolt)"
+        validate.check_positive(label, "young", young)
+        validate.check_positive(label, "area", area)
+        length = self._connector_length(label, at_a, at_b)
+        return self._connect(_Connector(BOLT, label, body_a, body_b, at_a, at_b, float(young) * float(area) / length,
+                                        0.0, 0.0, pretension, None))
+
+    def add_beam(self, body_a: int, body_b: int, at_a, at_b, young: float, area: float, inertia: float, *,
+                 shear_modulus: float | None = None, section: str = "rectangular") -> int:
+        """An elastic beam (eqs. 87-92) clamped to body_a at ``at_a`` and to body_b at
+        ``at_b`` (points at t = 0): Young's modulus ``young``, cross-section ``area``, second
+        moment of area ``inertia`` (m^4); with a ``shear_modulus`` G its shear deformation
+        enters through b = 12 k E / G (r / l)^2 (eq. 89; k = 1.2 for a "rectangular",
+        10/9 for a "circular" ``section``), without one it is an Euler-Bernoulli beam.
+        Each end turns with its body (eq. 90). Returns the connector index."""
+        label = f"connector {len(self._connectors)} (beam)"
+        for field, value in (("young", young), ("area", area), ("inertia", inertia)):
+            validate.check_positive(label, field, value)
+        if shear_modulus is not None:
+            validate.check_positive(label, "shear_modulus", shear_modulus)
+        if section not in SHEAR_FACTOR:
+            raise SceneError(f"{label}: field 'section' must be one of {sorted(SHEAR_FACTOR)}, got {section!r}")
+        length = self._connector_length(label, at_a, at_b)
+        axial, bending, b = beam_coefficients(float(young), float(area), float(inertia),
+                                              None if shear_modulus is None else float(shear_modulus),
+                                              SHEAR_FACTOR[section], length)
+        return self._connect(_Connector(BEAM, label, body_a, body_b, at_a, at_b, axial, bending, b, 0.0, None))
 
     # -- bodies ------------------------------------------------------------------------
     def add_disk(self, center, radius, density, velocity=(0.0, 0.0), angular_velocity=0.0, fixed=False,
@@ -250,6 +298,7 @@ class SceneBuilder:
             load_point=jnp.asarray(np.reshape([ld[1] for ld in self._loads], (-1, 2))),
             joint_key=jnp.full((1,), NO_JOINT, jnp.int64), joint_a=jnp.zeros((1,), jnp.int32),
             joint_b=jnp.zeros((1,), jnp.int32), joint_point=jnp.zeros((1, 2)),
+            **connector_model(self._connectors, centers, n),
             capacity=capacity, n_bodies=n, max_vertices=v_max)
         key, force = zeros_contact_memory(capacity.contacts)
         state = State(time=jnp.asarray(0.0), origin=jnp.asarray(centers), displacement=jnp.zeros((n, 2)),
@@ -266,12 +315,47 @@ class SceneBuilder:
                         load_rate=jnp.asarray(np.reshape([ld[3] for ld in self._loads], (-1, 2))),
                         dynamic=jnp.asarray(float(self.dynamic)),
                         tol=jnp.asarray(float(self.tol)), max_iter=jnp.asarray(float(self.max_iter)),
-                        margin=jnp.asarray(margin), rupture_width=jnp.asarray(0.0))
+                        margin=jnp.asarray(margin), rupture_width=jnp.asarray(0.0),
+                        **connector_params(self._connectors))
         if np.any(tables["tensile"] > 0):
             model, state = cement.with_joints(model, state, params, tol=1e-9 * size)
         return Scene(model, state, params, tuple(labels), tuple(names), self.name)
 
     # -- helpers -----------------------------------------------------------------------
+    def _connector_length(self, label: str, at_a, at_b) -> float:
+        length = float(np.linalg.norm(self._point(label, "at_b", at_b) - self._point(label, "at_a", at_a)))
+        if length == 0.0:
+            raise SceneError(f"{label}: zero length (fields 'at_a' and 'at_b' are the same point)")
+        return length
+
+    def _connect(self, conn: "_Connector") -> int:
+        """Validate a connector's bodies, points and numbers, and keep it."""
+        label = conn.label
+        for field in ("body_a", "body_b"):
+            body = getattr(conn, field)
+            if isinstance(body, bool) or not isinstance(body, (int, np.integer)) or not 0 <= body < len(self._bodies):
+                raise SceneError(f"{label}: field '{field}' must be the index of an added body, got {body!r}")
+        if conn.body_a == conn.body_b:
+            raise SceneError(f"{label}: fields 'body_a' and 'body_b' name the same body {conn.body_a}")
+        conn.at_a, conn.at_b = self._point(label, "at_a", conn.at_a), self._point(label, "at_b", conn.at_b)
+        for field, body, point in (("at_a", conn.body_a, conn.at_a), ("at_b", conn.body_b, conn.at_b)):
+            b = self._bodies[body]
+            size = b.radius if b.kind != POLYGON else float(np.max(np.linalg.norm(b.local, axis=1)))
+            outside = validate.point_outside_by(point, self._world_shape(b))
+            if outside > 1e-9 * size:
+                raise SceneError(f"{label}: field '{field}' {tuple(point.tolist())} lies {outside:.3g} m outside "
+                                 f"{self._label(b.kind, body)}")
+        if np.linalg.norm(conn.at_b - conn.at_a) == 0.0:
+            raise SceneError(f"{label}: zero length (fields 'at_a' and 'at_b' are the same point)")
+        validate.check_finite(label, "pretension", conn.pretension)
+        conn.pretension = float(conn.pretension)
+        if conn.rest_length is not None:
+            validate.check_finite(label, "rest_length", conn.rest_length)
+            if conn.rest_length < 0:
+                raise SceneError(f"{label}: field 'rest_length' must be >= 0, got {conn.rest_length}")
+        self._connectors.append(conn)
+        return len(self._connectors) - 1
+
     def _label(self, kind: int, index: int | None = None) -> str:
         return f"body {len(self._bodies) if index is None else index} ({KIND_NAMES[kind]})"
 
@@ -339,6 +423,77 @@ class SceneBuilder:
         if b.kind == RING:
             return ("ring", b.center, b.radius, b.inner_radius)
         return ("polygon", b.local + b.center)
+
+
+@dataclasses.dataclass
+class _Connector:
+    kind: int
+    label: str
+    body_a: int
+    body_b: int
+    at_a: np.ndarray  # world points at t = 0
+    at_b: np.ndarray
+    axial: float  # N/m
+    bending: float  # E I
+    shear: float  # b of eq. 89
+    pretension: float
+    rest_length: float | None  # None: the initial length
+
+
+def connector_model(connectors: list[_Connector], centers: np.ndarray, n: int) -> dict:
+    """The Model fields of the connectors and of the dof groups they make (bodies tied
+    directly or through others share one group)."""
+    k = len(connectors)
+    a = np.array([c.body_a for c in connectors], np.int32)
+    b = np.array([c.body_b for c in connectors], np.int32)
+    pa = np.reshape([c.at_a - centers[c.body_a] for c in connectors], (k, 2))
+    pb = np.reshape([c.at_b - centers[c.body_b] for c in connectors], (k, 2))
+    chord = np.reshape([c.at_b - c.at_a for c in connectors], (k, 2))
+    length = np.linalg.norm(chord, axis=1)
+    rest = np.array([length[i] if c.rest_length is None else c.rest_length for i, c in enumerate(connectors)])
+    members, body_group, body_slot = dof_groups(n, a, b)
+    return dict(connector_kind=jnp.asarray([c.kind for c in connectors], jnp.int32).reshape(k),
+                connector_a=jnp.asarray(a), connector_b=jnp.asarray(b), connector_pa=jnp.asarray(pa),
+                connector_pb=jnp.asarray(pb), connector_length=jnp.asarray(rest.reshape(k)),
+                connector_chord0=jnp.asarray(chord / np.where(length > 0, length, 1.0)[:, None]),
+                group_members=jnp.asarray(members), body_group=jnp.asarray(body_group),
+                body_slot=jnp.asarray(body_slot))
+
+
+def connector_params(connectors: list[_Connector]) -> dict:
+    def field(name):
+        return jnp.asarray(np.array([getattr(c, name) for c in connectors], float).reshape(len(connectors)))
+
+    return dict(connector_axial=field("axial"), connector_bending=field("bending"), connector_shear=field("shear"),
+                connector_pretension=field("pretension"))
+
+
+def dof_groups(n: int, a: np.ndarray, b: np.ndarray):
+    """Connected components of the bodies tied by connectors (a[k], b[k]): members (G, S)
+    (-1 padded), and per body its group and slot (-1: independent)."""
+    parent = np.arange(n)
+
+    def root(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for i, j in zip(a.tolist(), b.tolist()):
+        parent[root(i)] = root(j)
+    tied = np.zeros(n, bool)
+    tied[a], tied[b] = True, True
+    comps: dict[int, list[int]] = {}
+    for i in np.flatnonzero(tied).tolist():
+        comps.setdefault(root(i), []).append(i)
+    groups = list(comps.values())
+    size = max([len(g) for g in groups], default=0)
+    members = -np.ones((len(groups), size), np.int32)
+    body_group, body_slot = -np.ones(n, np.int32), -np.ones(n, np.int32)
+    for g, bodies in enumerate(groups):
+        members[g, : len(bodies)] = bodies
+        body_group[bodies], body_slot[bodies] = g, np.arange(len(bodies))
+    return members, body_group, body_slot
 
 
 def _check_contact_law(label: str, law: dict) -> None:

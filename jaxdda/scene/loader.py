@@ -15,7 +15,7 @@ from typing import Any
 from jaxdda.errors import SceneError
 from jaxdda.scene.builder import CONTACT_LAW, Scene, SceneBuilder
 
-TOP_KEYS = ("name", "dt", "gravity", "steps", "solver", "materials", "interfaces", "bodies", "loads")
+TOP_KEYS = ("name", "dt", "gravity", "steps", "solver", "materials", "interfaces", "bodies", "loads", "connectors")
 SOLVER_KEYS = ("tol", "max_iter", "margin", "dynamic")
 MATERIAL_KEYS = tuple(CONTACT_LAW)
 INTERFACE_KEYS = ("materials",) + MATERIAL_KEYS
@@ -28,6 +28,13 @@ BODY_TYPES = {
     "polygon": ("add_polygon", ("vertices", "density")),
 }
 BODY_OPTIONAL = ("velocity", "angular_velocity", "fixed", "material", "gravity", "young", "poisson", "plane", "stress")
+# type -> (SceneBuilder method, required fields, optional fields); all take the ends below.
+CONNECTOR_ENDS = ("body_a", "body_b", "at_a", "at_b")
+CONNECTOR_TYPES = {
+    "spring": ("add_spring", ("stiffness",), ("rest_length", "pretension")),
+    "bolt": ("add_bolt", ("young", "area"), ("pretension",)),
+    "beam": ("add_beam", ("young", "area", "inertia"), ("shear_modulus", "section")),
+}
 BOOLEAN_FIELDS = ("fixed", "gravity")  # bool("false") is True: insist on JSON true/false
 
 
@@ -107,7 +114,26 @@ def _build(data: Any) -> tuple[Scene, int | None]:
         _expect(load, dict, where, "an object")
         _check_keys(where, load, LOAD_KEYS, ("body", "force"))
         _call(where, sb.add_load, **load)
+
+    connectors = data.get("connectors", [])
+    _expect(connectors, list, "field 'connectors'", "a list")
+    for k, conn in enumerate(connectors):
+        _add_connector(sb, k, conn)
     return _call("scene", sb.build), steps
+
+
+def _add_connector(sb: SceneBuilder, k: int, conn: Any) -> None:
+    _expect(conn, dict, f"connector {k}", "an object")
+    kind = conn.get("type")
+    if not isinstance(kind, str) or kind not in CONNECTOR_TYPES:
+        raise SceneError(f"connector {k}: {'missing field' if kind is None else 'unknown type'} "
+                         f"{'type' if kind is None else repr(kind)} (known: {', '.join(CONNECTOR_TYPES)})")
+    method, required, optional = CONNECTOR_TYPES[kind]
+    where = f"connector {k} ({kind})"
+    _check_keys(where, conn, ("type",) + CONNECTOR_ENDS + required + optional, CONNECTOR_ENDS + required)
+    _check_numbers(where, {f: v for f, v in conn.items() if f in required + optional and f != "section"},
+                   allow_null=("rest_length", "shear_modulus"))
+    _call(where, getattr(sb, method), **{f: v for f, v in conn.items() if f != "type"})
 
 
 def _add_body(sb: SceneBuilder, i: int, body: Any) -> None:

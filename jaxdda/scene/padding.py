@@ -28,6 +28,9 @@ class Shape:
     materials: int
     loads: int
     joints: int
+    connectors: int
+    groups: int
+    group_size: int
     capacity: Capacities
 
     @staticmethod
@@ -38,7 +41,9 @@ class Shape:
         caps = [dataclasses.astuple(s.model.capacity) for s in scenes]
         return Shape(most(lambda s: s.model.n_bodies), most(lambda s: s.model.max_vertices),
                      most(lambda s: s.params.friction.shape[0]), most(lambda s: s.model.load_body.shape[0]),
-                     most(lambda s: s.model.joint_key.shape[0]), Capacities(*np.max(caps, 0).tolist()))
+                     most(lambda s: s.model.joint_key.shape[0]), most(lambda s: s.model.connector_a.shape[0]),
+                     most(lambda s: s.model.group_members.shape[0]), most(lambda s: s.model.group_members.shape[1]),
+                     Capacities(*np.max(caps, 0).tolist()))
 
 
 def _pad(x, size: int, fill, axis: int = 0):
@@ -76,6 +81,11 @@ def pad_scene(scene: Scene, shape: Shape) -> tuple[Model, State, Params]:
         load_body=_pad(m.load_body, shape.loads, 0), load_point=_pad(m.load_point, shape.loads, 0.0),
         joint_key=_pad(m.joint_key, shape.joints, NO_JOINT), joint_a=_pad(m.joint_a, shape.joints, 0),
         joint_b=_pad(m.joint_b, shape.joints, 0), joint_point=_pad(m.joint_point, shape.joints, 0.0),
+        **{f: _pad(getattr(m, f), shape.connectors, fill)  # inert padding connectors: zero stiffness
+           for f, fill in (("connector_kind", 0), ("connector_a", 0), ("connector_b", 1), ("connector_pa", 0.0),
+                           ("connector_pb", 0.0), ("connector_length", 1.0), ("connector_chord0", 1.0))},
+        group_members=_pad(_pad(np.asarray(m.group_members), shape.group_size, -1, axis=1), shape.groups, -1),
+        body_group=bodies(m.body_group, -1), body_slot=bodies(m.body_slot, -1),
         capacity=shape.capacity, n_bodies=shape.bodies, max_vertices=shape.vertices)
 
     def table(x):
@@ -85,7 +95,9 @@ def pad_scene(scene: Scene, shape: Shape) -> tuple[Model, State, Params]:
         p, density=bodies(p.density, 1.0), young=bodies(p.young, 0.0), poisson=bodies(p.poisson, 0.0),
         friction=table(p.friction), restitution=table(p.restitution), cohesion=table(p.cohesion),
         rolling=table(p.rolling), tensile=table(p.tensile),
-        load_force=_pad(p.load_force, shape.loads, 0.0), load_rate=_pad(p.load_rate, shape.loads, 0.0))
+        load_force=_pad(p.load_force, shape.loads, 0.0), load_rate=_pad(p.load_rate, shape.loads, 0.0),
+        **{f: _pad(getattr(p, f), shape.connectors, 0.0)
+           for f in ("connector_axial", "connector_bending", "connector_shear", "connector_pretension")})
     c = shape.capacity.contacts
     state = dataclasses.replace(
         s, origin=np.concatenate([np.asarray(s.origin), spots]), displacement=bodies(s.displacement, 0.0),

@@ -61,6 +61,18 @@ def _inside(points, a, b) -> np.ndarray:
     return (straddle & (px < x_cross)).sum(axis=1) % 2 == 1
 
 
+def point_outside_by(point, shape) -> float:
+    """How far ``point`` lies outside the material of a body's world ``shape`` (0: in it
+    or on its boundary)."""
+    p = np.asarray(point, float)
+    if shape[0] == "polygon":
+        a, b = _edges(shape[1])
+        return 0.0 if _inside(p[None], a, b)[0] else float(_segment_distance(p[None], a, b)[0])
+    r = float(np.linalg.norm(p - shape[1]))
+    inner = shape[3] if shape[0] == "ring" else 0.0
+    return max(r - shape[2], inner - r, 0.0)
+
+
 def _edges(v):
     return v, np.roll(v, -1, axis=0)
 
