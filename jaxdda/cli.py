@@ -38,6 +38,8 @@ def _parser() -> argparse.ArgumentParser:
                      help="number of steps (default: the file's \"steps\", or the example's default)")
     run.add_argument("--out", metavar="FILE.npz", help="save the trajectory and step diagnostics (numpy .npz)")
     run.add_argument("--plot", metavar="FILE.png", help="save a picture of the run (needs matplotlib)")
+    run.add_argument("--animate", metavar="FILE.gif", help="save an animation of the run (needs matplotlib)")
+    run.add_argument("--frames", type=_positive_int, default=100, help="frames of the animation (default 100)")
     run.add_argument("--chunk", type=_positive_int, default=2000,
                      help="steps per compiled chunk (default: 2000)")
     sub.add_parser("list", help="list the built-in examples")
@@ -93,7 +95,8 @@ def _check_writable(option: str, target: str | None) -> None:
 def _run(args) -> int:
     _check_writable("--out", args.out)
     _check_writable("--plot", args.plot)
-    if args.plot:
+    _check_writable("--animate", args.animate)
+    if args.plot or args.animate:
         from jaxdda.viz.plot import _import_matplotlib
 
         try:
@@ -136,4 +139,9 @@ def _run(args) -> int:
 
         plot_trajectory(traj, args.plot)
         print(f"  wrote {args.plot}")
+    if args.animate:
+        from jaxdda.viz.animate import animate_trajectory
+
+        count = animate_trajectory(traj, args.animate, frames=args.frames)
+        print(f"  wrote {args.animate} ({count} frames)")
     return 0

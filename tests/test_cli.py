@@ -58,6 +58,31 @@ def test_run_scene_file(tmp_path, capsys):
     assert png.exists()
 
 
+HANGING = {
+    "name": "hanging", "dt": 0.01, "steps": 12, "gravity": [0, -9.81],
+    "bodies": [
+        {"type": "polygon", "vertices": [[-0.5, 1], [0.5, 1], [0.5, 2], [-0.5, 2]], "density": 1, "fixed": True},
+        {"type": "disk", "center": [0, 0], "radius": 0.1, "density": 1000},
+    ],
+    "connectors": [{"type": "spring", "body_a": 0, "body_b": 1, "at_a": [0, 1], "at_b": [0, 0], "stiffness": 4000}],
+}
+
+
+def test_run_scene_file_with_a_connector_writes_an_animation(tmp_path, capsys):
+    from PIL import Image
+
+    scene = tmp_path / "hanging.json"
+    scene.write_text(json.dumps(HANGING))
+    gif = tmp_path / "h.gif"
+    assert main(["run", str(scene), "--animate", str(gif), "--frames", "5"]) == 0
+    assert "wrote" in capsys.readouterr().out
+    with Image.open(gif) as image:
+        assert image.n_frames == 5
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({**HANGING, "connectors": [{**HANGING["connectors"][0], "stifness": 1}]}))
+    assert "connector 0 (spring): unknown field 'stifness' (did you mean 'stiffness'?" in fails(["run", str(bad)], capsys)
+
+
 def fails(argv, capsys) -> str:
     assert main(argv) == 2
     captured = capsys.readouterr()

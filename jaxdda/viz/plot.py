@@ -20,6 +20,46 @@ def _import_matplotlib():
     return figure, patches, collections
 
 
+def body_colors(model) -> list[str]:
+    """One color per body: grey when fixed, else matplotlib's color cycle."""
+    cycle = [f"C{k}" for k in range(10)]
+    return [FIXED_COLOR if f else cycle[i % len(cycle)] for i, f in enumerate(np.asarray(model.fixed, bool))]
+
+
+def body_shapes(patches, model, centroid: np.ndarray, rotation: np.ndarray):
+    """(patches, radius lines) of every body at the pose (centroid (N, 2), rotation (N,))."""
+    kind, radius = np.asarray(model.kind), np.asarray(model.radius, float)
+    inner, local = np.asarray(model.inner_radius, float), np.asarray(model.local_vertices, float)
+    mask = np.asarray(model.vertex_mask, bool)
+    out, marks = [], []
+    for i, k in enumerate(kind):
+        c, th = centroid[i], rotation[i]
+        direction = np.array([np.cos(th), np.sin(th)])
+        if k == DISK:
+            out.append(patches.Circle(c, radius[i]))
+            marks.append([c, c + radius[i] * direction])
+        elif k == RING:
+            out.append(patches.Wedge(c, radius[i], 0.0, 360.0, width=radius[i] - inner[i]))
+            marks.append([c + inner[i] * direction, c + radius[i] * direction])
+        else:
+            out.append(patches.Polygon(c + local[i][mask[i]] @ _rotation(th).T, closed=True))
+    return out, marks
+
+
+def connector_lines(model, centroid: np.ndarray, rotation: np.ndarray) -> list:
+    """[[attachment a, attachment b], ...] of every connector at the pose (rigid placement
+    of the attachment points; a deformable body's stretch is not drawn)."""
+    a, b = np.asarray(model.connector_a), np.asarray(model.connector_b)
+    pa = centroid[a] + np.einsum("kij,kj->ki", _rotation(rotation[a]), np.asarray(model.connector_pa))
+    pb = centroid[b] + np.einsum("kij,kj->ki", _rotation(rotation[b]), np.asarray(model.connector_pb))
+    return [[p, q] for p, q in zip(pa, pb)]
+
+
+def _rotation(theta):
+    c, s = np.cos(theta), np.sin(theta)
+    return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
+
+
 def plot_trajectory(traj, path=None, *, ax=None, title=None):
     """Draw a Trajectory: every body at the final state (filled, semi-transparent; fixed
     bodies grey), at the initial state as thin dashed outlines, and the path of each
@@ -45,34 +85,12 @@ def plot_trajectory(traj, path=None, *, ax=None, title=None):
         fig = ax.figure
 
     model = traj.scene.model
-    kind = np.asarray(model.kind)
     fixed = np.asarray(model.fixed, bool)
-    radius = np.asarray(model.radius, float)
-    inner = np.asarray(model.inner_radius, float)
-    local = np.asarray(model.local_vertices, float)
-    mask = np.asarray(model.vertex_mask, bool)
     centroid = np.asarray(traj.centroid, float)
-    rotation = np.asarray(traj.rotation, float)
-    cycle = [f"C{k}" for k in range(10)]
-    colors = [FIXED_COLOR if fixed[i] else cycle[i % len(cycle)] for i in range(len(kind))]
+    colors = body_colors(model)
 
     def shapes(frame: int):
-        """(patches, radius lines) of every body at ``frame``."""
-        out, marks = [], []
-        for i, k in enumerate(kind):
-            c, th = centroid[frame, i], rotation[frame, i]
-            direction = np.array([np.cos(th), np.sin(th)])
-            if k == DISK:
-                out.append(patches.Circle(c, radius[i]))
-                marks.append([c, c + radius[i] * direction])
-            elif k == RING:
-                out.append(patches.Wedge(c, radius[i], 0.0, 360.0, width=radius[i] - inner[i]))
-                marks.append([c + inner[i] * direction, c + radius[i] * direction])
-            else:
-                cs, sn = np.cos(th), np.sin(th)
-                rot = np.array([[cs, -sn], [sn, cs]])
-                out.append(patches.Polygon(c + local[i][mask[i]] @ rot.T, closed=True))
-        return out, marks
+        return body_shapes(patches, model, centroid[frame], np.asarray(traj.rotation, float)[frame])
 
     first, first_marks = shapes(0)
     ax.add_collection(collections.PatchCollection(
@@ -80,7 +98,7 @@ def plot_trajectory(traj, path=None, *, ax=None, title=None):
     last, last_marks = shapes(-1)
     ax.add_collection(collections.PatchCollection(
         last, facecolors=colors, edgecolors=colors, linewidths=1.2, alpha=0.45))
-    round_colors = [colors[i] for i, k in enumerate(kind) if k != POLYGON]
+    round_colors = [colors[i] for i, k in enumerate(np.asarray(model.kind)) if k != POLYGON]
     if last_marks:
         ax.add_collection(collections.LineCollection(first_marks, colors=round_colors, linewidths=0.8,
                                                      linestyles="--", alpha=0.7))
@@ -91,6 +109,9 @@ def plot_trajectory(traj, path=None, *, ax=None, title=None):
         ax.add_collection(collections.LineCollection(
             [centroid[:, i] for i in free], colors=[colors[i] for i in free], linewidths=1.0))
     ax.plot(centroid[-1, free, 0], centroid[-1, free, 1], "k.", markersize=3)
+    if model.connector_a.shape[0]:
+        ax.add_collection(collections.LineCollection(connector_lines(model, centroid[-1], traj.rotation[-1]),
+                                                     colors="k", linewidths=1.0))
 
     ax.set_aspect("equal")
     ax.autoscale_view()
