@@ -137,6 +137,7 @@ def test_cantilevered_beam_deflects_as_a_timoshenko_beam(shear_modulus):
     (lambda sb: sb.add_spring(0, 5, (0.0, 1.0), (0.0, 0.0), stiffness=10.0), "body_b"),
     (lambda sb: sb.add_bolt(0, 1, (0.0, 1.0), (0.0, 0.0), young=2e11, area=0.0), "area"),
     (lambda sb: sb.add_bolt(0, 1, (0.0, 1.0), (0.0, 1.0), young=2e11, area=1e-4), "zero length"),
+    (lambda sb: sb.add_spring(0, 1, (0.0, 1.0), (0.0, 1.0), stiffness=10.0), "zero length"),
     (lambda sb: sb.add_beam(0, 1, (0.0, 1.0), (0.0, 0.0), young=2e11, area=1e-4, inertia=-1.0), "inertia"),
     (lambda sb: sb.add_beam(0, 1, (0.0, 1.0), (0.0, 0.0), young=2e11, area=1e-4, inertia=1e-8, section="oval"),
      "section"),

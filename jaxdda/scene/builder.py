@@ -139,6 +139,7 @@ class SceneBuilder:
         ``rest_length`` defaults to the initial distance. Returns the connector index."""
         label = f"connector {len(self._connectors)} (spring)"
         validate.check_positive(label, "stiffness", stiffness)
+        self._connector_length(label, at_a, at_b)
         return self._connect(_Connector(SPRING, label, body_a, body_b, at_a, at_b, float(stiffness), 0.0, 0.0,
                                         pretension, rest_length))
 
@@ -323,6 +324,7 @@ class SceneBuilder:
 
     # -- helpers -----------------------------------------------------------------------
     def _connector_length(self, label: str, at_a, at_b) -> float:
+        """The distance of the two attachment points (an error if they coincide)."""
         length = float(np.linalg.norm(self._point(label, "at_b", at_b) - self._point(label, "at_a", at_a)))
         if length == 0.0:
             raise SceneError(f"{label}: zero length (fields 'at_a' and 'at_b' are the same point)")
@@ -345,8 +347,6 @@ class SceneBuilder:
             if outside > 1e-9 * size:
                 raise SceneError(f"{label}: field '{field}' {tuple(point.tolist())} lies {outside:.3g} m outside "
                                  f"{self._label(b.kind, body)}")
-        if np.linalg.norm(conn.at_b - conn.at_a) == 0.0:
-            raise SceneError(f"{label}: zero length (fields 'at_a' and 'at_b' are the same point)")
         validate.check_finite(label, "pretension", conn.pretension)
         conn.pretension = float(conn.pretension)
         if conn.rest_length is not None:
