@@ -23,7 +23,6 @@ from jaxdda.bodies.shape import rotation_matrix
 from jaxdda.types import NDOF
 
 BOLT, SPRING, BEAM = 0, 1, 2
-CONNECTOR_NAMES = {BOLT: "bolt", SPRING: "spring", BEAM: "beam"}
 SHEAR_FACTOR = {"rectangular": 1.2, "circular": 10.0 / 9.0}  # k_Be of eq. 89
 
 
@@ -39,6 +38,18 @@ def _wrap(angle):
     return jnp.arctan2(jnp.sin(angle), jnp.cos(angle))
 
 
+def _chord(point, angle, chord0):
+    """Length of the chord between the two attachment points (2, 2), and the end rotations
+    phi (2,) of the bodies (angles ``angle``) against it, from its direction ``chord0`` at
+    t = 0 (no NaN, nor NaN derivative, where the points coincide)."""
+    chord = point[1] - point[0]
+    apart = jnp.sum(chord ** 2) > 0
+    safe = jnp.where(apart, chord, chord0)
+    length = jnp.where(apart, jnp.sqrt(jnp.sum(safe ** 2)), 0.0)
+    turned = jnp.arctan2(chord0[0] * safe[1] - chord0[1] * safe[0], chord0 @ safe)  # chord rotation
+    return length, _wrap(angle - turned)
+
+
 def _energy(geometry, stiffness, d):
     """U of one connector after the dof increments d (2, 6) of its two bodies.
 
@@ -50,12 +61,7 @@ def _energy(geometry, stiffness, d):
     k, l0, pre, a4, a5 = stiffness
     strain = jnp.stack([jnp.stack([d[:, 3], d[:, 5] / 2], -1), jnp.stack([d[:, 5] / 2, d[:, 4]], -1)], -2)
     moved = jnp.einsum("sij,sj->si", rotation_matrix(d[:, 2]) + strain, offset)
-    point = centroid + d[:, :2] + moved
-    chord = point[1] - point[0]
-    safe = jnp.where(jnp.sum(chord ** 2) > 0, chord, chord0)
-    length = jnp.where(jnp.sum(chord ** 2) > 0, jnp.sqrt(jnp.sum(safe ** 2)), 0.0)
-    turned = jnp.arctan2(chord0[0] * safe[1] - chord0[1] * safe[0], chord0 @ safe)  # chord rotation
-    phi = _wrap(angle + d[:, 2] - turned)
+    length, phi = _chord(centroid + d[:, :2] + moved, angle + d[:, 2], chord0)
     bend = 0.5 * (a4 * (phi[0] ** 2 + phi[1] ** 2) + 2.0 * a5 * phi[0] * phi[1])
     return 0.5 * k * (length - l0) ** 2 + pre * length + bend
 
@@ -95,11 +101,7 @@ def connector_forces(model, params, state):
     """(K, 4) per connector in ``state``: axial force (tension +), shear force, and the
     bending moments at ends a and b (counter-clockwise on the beam's end; 0 unless a beam)."""
     centroid, offset, angle, chord0 = _geometry(model, state)
-    point = centroid + offset
-    chord = point[:, 1] - point[:, 0]
-    length = jnp.linalg.norm(chord, axis=-1)
-    turned = jnp.arctan2(chord0[:, 0] * chord[:, 1] - chord0[:, 1] * chord[:, 0], jnp.sum(chord0 * chord, -1))
-    phi = _wrap(angle - turned[:, None])
+    length, phi = jax.vmap(_chord)(centroid + offset, angle, chord0)
     _, _, _, a4, a5 = _stiffness(model, params)
     m_a, m_b = a4 * phi[:, 0] + a5 * phi[:, 1], a5 * phi[:, 0] + a4 * phi[:, 1]
     axial = params.connector_axial * (length - model.connector_length) + params.connector_pretension

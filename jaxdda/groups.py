@@ -87,16 +87,26 @@ def apply(flex: Flexibility, x: jax.Array) -> jax.Array:
     return y.at[target].add(yg, mode="drop")
 
 
-def block(flex: Flexibility, a: jax.Array, b: jax.Array) -> jax.Array:
-    """(C, 6, 6): the block of the inverse coupling body a's dofs to body b's (zero across
-    groups and between different independent bodies)."""
-    same = a == b
-    out = jnp.where(same[:, None, None], flex.single[a], 0.0)
+def diagonal(flex: Flexibility, a: jax.Array) -> jax.Array:
+    """(C, 6, 6): the diagonal block of the inverse for bodies ``a``."""
+    out = flex.single[a]
     if flex.n_groups == 0:
         return out
-    g, s = flex.members.shape
+    return out + _group_block(flex, a, a, flex.body_group[a] >= 0)
+
+
+def coupling(flex: Flexibility, a: jax.Array, b: jax.Array) -> jax.Array | None:
+    """(C, 6, 6): the block coupling body a's dofs to body b's (a != b), nonzero only
+    within a group; None when there are no groups."""
+    if flex.n_groups == 0:
+        return None
     ga = flex.body_group[a]
-    together = (ga >= 0) & (ga == flex.body_group[b])
+    return _group_block(flex, a, b, (ga >= 0) & (ga == flex.body_group[b]))
+
+
+def _group_block(flex: Flexibility, a, b, where):
+    g, s = flex.members.shape
     inv5 = flex.group.reshape(g, s, NDOF, s, NDOF)
-    cross = inv5[jnp.maximum(ga, 0), jnp.maximum(flex.body_slot[a], 0), :, jnp.maximum(flex.body_slot[b], 0), :]
-    return out + jnp.where(together[:, None, None], cross, 0.0)
+    ga = jnp.maximum(flex.body_group[a], 0)
+    block = inv5[ga, jnp.maximum(flex.body_slot[a], 0), :, jnp.maximum(flex.body_slot[b], 0), :]
+    return jnp.where(where[:, None, None], block, 0.0)

@@ -41,9 +41,11 @@ def _apply_w(operand, p: jax.Array) -> jax.Array:
 def _flexibility(jac: jax.Array, c: Contacts, inv: Flexibility):
     """The operand of ``_apply_w`` for W = J inv J^T, and W's diagonal (C, 3) (with the
     coupling of a contact's two bodies where they share a dof group, eq. 112)."""
-    diag = (jnp.einsum("cij,cjk,cik->ci", jac[:, 0], groups.block(inv, c.a, c.a), jac[:, 0])
-            + jnp.einsum("cij,cjk,cik->ci", jac[:, 1], groups.block(inv, c.b, c.b), jac[:, 1])
-            + 2.0 * jnp.einsum("cij,cjk,cik->ci", jac[:, 0], groups.block(inv, c.a, c.b), jac[:, 1]))
+    diag = (jnp.einsum("cij,cjk,cik->ci", jac[:, 0], groups.diagonal(inv, c.a), jac[:, 0])
+            + jnp.einsum("cij,cjk,cik->ci", jac[:, 1], groups.diagonal(inv, c.b), jac[:, 1]))
+    cross = groups.coupling(inv, c.a, c.b)
+    if cross is not None:
+        diag = diag + 2.0 * jnp.einsum("cij,cjk,cik->ci", jac[:, 0], cross, jac[:, 1])
     return (jac, c, inv), diag
 
 

@@ -138,7 +138,8 @@ def particle_chain(heavy: bool = False, *, height: float = 3.0, stiffness: float
     centre to centre by 10 springs of ``stiffness``, released with the middle disk
     ``height`` above a fixed disk R = 8; first touch at t = sqrt(2 H / g) (step 155).
     The paper gives no spacing, density or contact law: centres 4.5 apart, density 2500,
-    ``friction`` 0.5 and ``restitution`` 0 (so the chain comes to rest). Body 5 is the
+    ``friction`` 0.5 and ``restitution`` 0 (so the part lying on the disk comes to rest;
+    the ends hanging past it keep swinging). Body 5 is the
     middle disk, body 11 the fixed disk."""
     sb = SceneBuilder(dt=0.005, gravity=(0.0, -G), name="paper-7.10")
     sb.add_material("chain", friction=friction, restitution=restitution)

@@ -86,11 +86,11 @@ def plot_trajectory(traj, path=None, *, ax=None, title=None):
 
     model = traj.scene.model
     fixed = np.asarray(model.fixed, bool)
-    centroid = np.asarray(traj.centroid, float)
+    centroid, rotation = np.asarray(traj.centroid, float), np.asarray(traj.rotation, float)
     colors = body_colors(model)
 
     def shapes(frame: int):
-        return body_shapes(patches, model, centroid[frame], np.asarray(traj.rotation, float)[frame])
+        return body_shapes(patches, model, centroid[frame], rotation[frame])
 
     first, first_marks = shapes(0)
     ax.add_collection(collections.PatchCollection(
@@ -110,7 +110,7 @@ def plot_trajectory(traj, path=None, *, ax=None, title=None):
             [centroid[:, i] for i in free], colors=[colors[i] for i in free], linewidths=1.0))
     ax.plot(centroid[-1, free, 0], centroid[-1, free, 1], "k.", markersize=3)
     if model.connector_a.shape[0]:
-        ax.add_collection(collections.LineCollection(connector_lines(model, centroid[-1], traj.rotation[-1]),
+        ax.add_collection(collections.LineCollection(connector_lines(model, centroid[-1], rotation[-1]),
                                                      colors="k", linewidths=1.0))
 
     ax.set_aspect("equal")
