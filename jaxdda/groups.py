@@ -1,7 +1,17 @@
-"""Dof groups: bodies tied by connectors share one K_eff, inverted once per step (the
-particle/block-based composite matrix, eqs. 106-112); independent bodies keep their own
-6x6 inverse. ``Flexibility`` applies the result to per-body dof vectors, so contacts,
-loads and integration stay per body: W = J K_eff^-1 J^T is never formed (eq. 112).
+"""Dof groups: bodies that share dofs or stiffness are solved together (the composite
+matrices of paper Section 6); independent bodies keep their own 6x6 inverse.
+
+A group has R reduced dofs q. Each member body's 6 generalised dofs are ``map @ q_slot``
+where ``q_slot`` are the (up to 6) reduced dofs listed in its slot of ``group_dofs``:
+
+* a body tied by connectors (eqs. 106-112) owns 6 reduced dofs, its map an orthonormal
+  basis of its active subspace (``Model.dof_basis``);
+* a 3-node triangle of a meshed block (eqs. 93-105) maps its three nodes' displacements
+  to its affine dofs (``mesh_maps``): elements sharing a node share its dofs, so the
+  group's K_eff is the assembled finite element matrix sum A^T K_e A.
+
+``Flexibility`` applies K_eff^-1 to per-body dof vectors, so contacts, loads and
+integration stay per body and W = J K_eff^-1 J^T is never formed (eqs. 105, 112).
 """
 from __future__ import annotations
 
@@ -16,13 +26,17 @@ from jaxdda.types import NDOF
 @pytree_dataclass
 class Flexibility:
     """An inverse on per-body dofs: ``single`` (N, 6, 6) for independent bodies (zero for
-    grouped ones) and ``group`` (G, 6S, 6S) for groups of up to S bodies listed in
-    ``members`` (G, S) (-1: an empty slot); ``body_group``, ``body_slot`` (N,) locate each
-    body in its group (-1: independent)."""
+    grouped ones) and, per group, ``group`` (G, R + 1, R + 1) on its reduced dofs (the
+    last row and column are zero: the index R stands for "no dof"). ``members`` (G, S)
+    lists each group's bodies (-1: empty slot), ``dofs`` (G, S, 6) and ``maps``
+    (G, S, 6, 6) tie each member's dofs to the reduced ones; ``body_group``,
+    ``body_slot`` (N,) locate a body in its group (-1: independent)."""
 
     single: jax.Array
     group: jax.Array
     members: jax.Array
+    dofs: jax.Array
+    maps: jax.Array
     body_group: jax.Array
     body_slot: jax.Array
 
@@ -35,43 +49,77 @@ def independent(inv: jax.Array) -> Flexibility:
     """A per-body inverse (N, 6, 6) with no groups."""
     n = inv.shape[0]
     none = -jnp.ones((n,), jnp.int32)
-    return Flexibility(inv, jnp.zeros((0, 0, 0), inv.dtype), jnp.zeros((0, 0), jnp.int32), none, none)
+    return Flexibility(inv, jnp.zeros((0, 1, 1), inv.dtype), jnp.zeros((0, 0), jnp.int32),
+                       jnp.zeros((0, 0, NDOF), jnp.int32), jnp.zeros((0, 0, NDOF, NDOF), inv.dtype), none, none)
 
 
-def _block_diag(blocks: jax.Array) -> jax.Array:
-    """(G, S, 6, 6) -> (G, 6S, 6S)."""
-    g, s = blocks.shape[:2]
-    full = jnp.einsum("gsij,st->gsitj", blocks, jnp.eye(s, dtype=blocks.dtype))
-    return full.reshape(g, s * NDOF, s * NDOF)
+def scaled(flex: Flexibility, factor: jax.Array) -> Flexibility:
+    """The same inverse times ``factor``."""
+    return Flexibility(flex.single * factor, flex.group * factor, flex.members, flex.dofs, flex.maps,
+                       flex.body_group, flex.body_slot)
 
 
-def grouped(matrix: jax.Array, projector: jax.Array, model, coupling=None) -> Flexibility:
-    """The inverse of ``matrix`` (N, 6, 6 per body) on each body's active dofs (``projector``),
-    with the bodies of each group of ``model`` inverted together and coupled by
-    ``coupling``: (connector index pairs (K, 2), their stiffness (K, 12, 12)) or None."""
+def mesh_maps(vertices: jax.Array) -> jax.Array:
+    """(N, 6, 6) A with d = A q: the affine dofs [u0, v0, theta, eps_x, eps_y, gamma_xy] of
+    a triangle's linear (CST) field from its nodal displacements q = [u1, v1, u2, v2, u3,
+    v3], for triangles with world ``vertices`` (N, >= 3, 2) counter-clockwise (eqs. 93-94:
+    the area coordinates' gradients give the strains; the centroid moves by their mean)."""
+    x = vertices[:, :3]
+    nxt, prv = jnp.roll(x, -1, axis=1), jnp.roll(x, 1, axis=1)
+    edge = prv - nxt  # opposite edge of each node (from the next node to the previous one)
+    d1, d2 = x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]
+    area2 = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
+    gx, gy = -edge[..., 1] / area2[:, None], edge[..., 0] / area2[:, None]  # grad of area coordinates (N, 3)
+    z, third = jnp.zeros_like(gx), jnp.full_like(gx, 1.0 / 3.0)
+    rows = [  # per node (u, v) columns, stacked over the 3 nodes
+        (third, z), (z, third), (-0.5 * gy, 0.5 * gx), (gx, z), (z, gy), (gy, gx)]
+    return jnp.stack([jnp.stack([u, v], -1).reshape(x.shape[0], 6) for u, v in rows], 1)
+
+
+def grouped(matrix: jax.Array, projector: jax.Array, model, maps: jax.Array | None = None,
+            coupling=None) -> Flexibility:
+    """The inverse of ``matrix`` (N, 6, 6 per body) on each body's active dofs
+    (``projector``), with the bodies of each group of ``model`` inverted together on
+    their reduced dofs (``maps`` (N, 6, 6) per body, default ``model.dof_basis``) and
+    coupled by ``coupling``: (connector index pairs (K, 2), their stiffness (K, 12, 12))
+    or None."""
     members = model.group_members
     single = inverse_on_subspace(matrix, projector)
     if members.shape[0] == 0:
         return independent(single)
     single = jnp.where((model.body_group >= 0)[:, None, None], 0.0, single)
-    slot_ok = (members >= 0)[..., None, None]
+    maps = model.dof_basis if maps is None else maps
+    g, s = members.shape
+    r = model.group_free.shape[1]
+    ok = members >= 0
     idx = jnp.maximum(members, 0)
-    big = _block_diag(jnp.where(slot_ok, matrix[idx], 0.0))
-    proj = _block_diag(jnp.where(slot_ok, projector[idx], 0.0))
+    slot_maps = jnp.where(ok[..., None, None], maps[idx], 0.0)
+    dofs = jnp.where(model.group_dofs >= 0, model.group_dofs, r)
+    gi = jnp.arange(g)[:, None, None, None]
+    blocks = jnp.einsum("gsia,gsij,gsjb->gsab", slot_maps, matrix[idx], slot_maps)
+    k = jnp.zeros((g, r + 1, r + 1), matrix.dtype).at[gi, dofs[..., :, None], dofs[..., None, :]].add(blocks)
     if coupling is not None:
         bodies, stiff = coupling
-        g = model.body_group[bodies[:, 0]]
-        g = jnp.where(g >= 0, g, members.shape[0])  # an inert padding connector: dropped
-        s, d = members.shape[1], NDOF
-        big5 = big.reshape(-1, s, d, s, d)
-        k = stiff.reshape(-1, 2, d, 2, d)
+        cg = model.body_group[bodies[:, 0]]
+        cg = jnp.where(cg >= 0, cg, g)  # an inert padding connector: dropped
+        slot = jnp.maximum(model.body_slot[bodies], 0)
+        end_dofs = dofs[jnp.minimum(cg, g - 1)[:, None], slot]  # (K, 2, 6)
+        end_maps = maps[bodies]  # (K, 2, 6, 6)
+        kk = stiff.reshape(-1, 2, NDOF, 2, NDOF)
         for i in range(2):
             for j in range(2):
-                big5 = big5.at[g, model.body_slot[bodies[:, i]], :, model.body_slot[bodies[:, j]], :].add(k[:, i, :, j, :], mode="drop")
-        big = big5.reshape(big.shape)
-    eye = jnp.eye(big.shape[-1], dtype=big.dtype)
-    inv = proj @ spd_inverse(proj @ big @ proj + eye - proj) @ proj
-    return Flexibility(single, inv, members, model.body_group, model.body_slot)
+                blk = jnp.einsum("kia,kij,kjb->kab", end_maps[:, i], kk[:, i, :, j, :], end_maps[:, j])
+                k = k.at[cg[:, None, None], end_dofs[:, i, :, None], end_dofs[:, j, None, :]].add(blk, mode="drop")
+    free = model.group_free
+    inv = spd_inverse(k[:, :r, :r] + jax.vmap(jnp.diag)((~free).astype(matrix.dtype)))
+    inv = inv * (free[:, :, None] & free[:, None, :])
+    inv = jnp.zeros_like(k).at[:, :r, :r].set(inv)
+    return Flexibility(single, inv, members, dofs, slot_maps, model.body_group, model.body_slot)
+
+
+def _slots(flex: Flexibility, x: jax.Array) -> jax.Array:
+    """(N, 6) per body -> (G, S, 6) per group slot (zero in empty slots)."""
+    return jnp.where((flex.members >= 0)[..., None], x[jnp.maximum(flex.members, 0)], 0.0)
 
 
 def apply(flex: Flexibility, x: jax.Array) -> jax.Array:
@@ -79,11 +127,13 @@ def apply(flex: Flexibility, x: jax.Array) -> jax.Array:
     y = jnp.einsum("nij,nj->ni", flex.single, x)
     if flex.n_groups == 0:
         return y
-    members = flex.members
-    g, s = members.shape
-    xg = jnp.where((members >= 0)[..., None], x[jnp.maximum(members, 0)], 0.0).reshape(g, s * NDOF)
-    yg = jnp.einsum("gij,gj->gi", flex.group, xg).reshape(g * s, NDOF)
-    target = jnp.where(members >= 0, members, x.shape[0]).reshape(-1)
+    g, s = flex.members.shape
+    gi = jnp.arange(g)[:, None, None]
+    reduced = jnp.zeros(flex.group.shape[:2], x.dtype).at[gi, flex.dofs].add(
+        jnp.einsum("gsij,gsi->gsj", flex.maps, _slots(flex, x)))
+    z = jnp.einsum("gij,gj->gi", flex.group, reduced)
+    yg = jnp.einsum("gsij,gsj->gsi", flex.maps, z[gi, flex.dofs]).reshape(g * s, NDOF)
+    target = jnp.where(flex.members >= 0, flex.members, x.shape[0]).reshape(-1)
     return y.at[target].add(yg, mode="drop")
 
 
@@ -105,8 +155,9 @@ def coupling(flex: Flexibility, a: jax.Array, b: jax.Array) -> jax.Array | None:
 
 
 def _group_block(flex: Flexibility, a, b, where):
-    g, s = flex.members.shape
-    inv5 = flex.group.reshape(g, s, NDOF, s, NDOF)
     ga = jnp.maximum(flex.body_group[a], 0)
-    block = inv5[ga, jnp.maximum(flex.body_slot[a], 0), :, jnp.maximum(flex.body_slot[b], 0), :]
+    sa, sb = jnp.maximum(flex.body_slot[a], 0), jnp.maximum(flex.body_slot[b], 0)
+    da, db = flex.dofs[ga, sa], flex.dofs[ga, sb]  # (C, 6)
+    inner = flex.group[ga[:, None, None], da[:, :, None], db[:, None, :]]
+    block = jnp.einsum("cia,cab,cjb->cij", flex.maps[ga, sa], inner, flex.maps[ga, sb])
     return jnp.where(where[:, None, None], block, 0.0)

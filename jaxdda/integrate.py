@@ -109,3 +109,13 @@ def impact_clock(t_hit: jax.Array, struck: jax.Array, carrying: jax.Array, a: ja
 
     _, src, _ = jax.lax.while_loop(lambda c: c[2], spread, (jnp.where(is_struck, first, jnp.inf), src, True))
     return jnp.where(src >= 0, t_hit[jnp.maximum(src, 0)], 0.0)
+
+
+def mesh_clock(mesh: jax.Array, clock: jax.Array) -> jax.Array:
+    """The elements of a meshed block are one body: they all change velocity at the latest
+    clock among them (the time of the impact on the block), so the impact shift is a
+    field of the nodes and the mesh stays conforming."""
+    n = clock.shape[0]
+    seg = jnp.where(mesh >= 0, mesh, n)
+    latest = jax.ops.segment_max(clock, seg, n + 1)
+    return jnp.where(mesh >= 0, latest[seg], clock)

@@ -34,6 +34,7 @@ class Trajectory:
     stress: np.ndarray  # (S+1, bodies, 3): sigma_x, sigma_y, tau_xy of deformable bodies (0 if rigid)
     info: StepInfo
     final_state: State
+    stretch: np.ndarray | None = None  # (S+1, bodies, 2, 2): shape x = c + R(rotation) stretch X (I if rigid)
 
     @property
     def steps(self) -> int:
@@ -59,6 +60,23 @@ class Trajectory:
         force, and the bending moments at ends a and b (beams; connectors.connector_forces)."""
         return self.info.connector_force
 
+    def vertices(self) -> np.ndarray:
+        """(S+1, bodies, V, 2): polygon vertices in the world frame at each step (padding
+        entries and those of disks and rings are meaningless)."""
+        local = np.einsum("snij,nvj->snvi", self.stretch, np.asarray(self.scene.model.local_vertices))
+        c, s = np.cos(self.rotation)[..., None], np.sin(self.rotation)[..., None]
+        x, y = local[..., 0], local[..., 1]
+        return self.centroid[:, :, None, :] + np.stack([c * x - s * y, s * x + c * y], -1)
+
+    def mesh_nodes(self, mesh) -> np.ndarray:
+        """(S+1, nodes, 2): the node positions of a meshed block (the ``Mesh`` that
+        ``add_mesh`` returned) at each step."""
+        verts = self.vertices()
+        out = np.empty((len(self.time), len(mesh.nodes), 2))
+        for element, body in enumerate(mesh.bodies):
+            out[:, mesh.triangles[element]] = verts[:, body, :3]
+        return out
+
     def force_between(self, i: int, j: int) -> np.ndarray:
         """(S, 2): the resultant contact force that body i exerts on body j in each step
         (global frame, step average: impact impulses count as impulse / dt)."""
@@ -78,7 +96,7 @@ def _run_chunk(model: Model, state: State, params: Params, n_valid, length: int)
 
     def body(s, k):
         s2, info = jax.lax.cond(k < n_valid, lambda s: step(model, s, params), skip, s)
-        return s2, (s2.time, s2.centroid, s2.rotation, s2.velocity[:, :3], s2.stress, info)
+        return s2, (s2.time, s2.centroid, s2.rotation, s2.velocity[:, :3], s2.stress, s2.stretch, info)
 
     return jax.lax.scan(body, state, jnp.arange(length))
 
@@ -149,11 +167,12 @@ def _pad_contacts(report: ContactReport, width: int) -> ContactReport:
 def _assemble(scene: Scene, pieces, final_state: State) -> Trajectory:
     s0 = scene.state
     first = (np.asarray(s0.time)[None], np.asarray(s0.centroid)[None], np.asarray(s0.rotation)[None],
-             np.asarray(s0.velocity)[None, :, :3], np.asarray(s0.stress)[None])
+             np.asarray(s0.velocity)[None, :, :3], np.asarray(s0.stress)[None], np.asarray(s0.stretch)[None])
     k_info = len(first)
     width = max(p[k_info].contacts.valid.shape[1] for p in pieces)
     pieces = [p[:k_info] + (dataclasses.replace(p[k_info], contacts=_pad_contacts(p[k_info].contacts, width)),)
               for p in pieces]
     cols = [np.concatenate([f] + [p[k] for p in pieces]) for k, f in enumerate(first)]
     info = jax.tree.map(lambda *xs: np.concatenate(xs), *[p[k_info] for p in pieces])
-    return Trajectory(scene, *cols, info, final_state)
+    *cols, stretch = cols
+    return Trajectory(scene, *cols, info, final_state, stretch)

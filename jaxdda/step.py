@@ -10,15 +10,17 @@ import jax
 import jax.numpy as jnp
 
 from jaxdda import groups
-from jaxdda.bodies.elastic import current_shape, elastic_matrix, stiffness, stress_load, updated_stretch
-from jaxdda.bodies.mass import external_load, inverse_on_subspace, mass_matrix
+from jaxdda.bodies.elastic import (current_shape, elastic_matrix, finite_rotation_shift, mesh_rotation,
+                                   rotated_stress, stiffness, stress_load, updated_stretch)
+from jaxdda.bodies.mass import external_load, mass_matrix
+from jaxdda.bodies.shape import to_world
 from jaxdda.connectors import connector_forces, connector_terms
 from jaxdda.contact.adjoint import adjoint_partner
 from jaxdda.contact.detect import detect
 from jaxdda.contact.keys import lookup
 from jaxdda.contact.kinematics import (apply_jacobian, apply_jacobian_t, clockwise, gap_change, gap_frame,
                                        jacobians)
-from jaxdda.integrate import (common_impact_time, free_displacement, impact_clock, impact_time, matvec,
+from jaxdda.integrate import (common_impact_time, free_displacement, impact_clock, impact_time, matvec, mesh_clock,
                               newmark_velocity)
 from jaxdda.groups import Flexibility
 from jaxdda.solver import pc
@@ -95,7 +97,6 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     model = current_shape(base, state.stretch)  # local geometry in each body's current shape
     volume = base.area * jnp.abs(jnp.linalg.det(state.stretch))
     mass = mass_matrix(base, params, state)
-    m_inv = groups.independent(inverse_on_subspace(mass, proj))  # connectors pass no impulse
     stiff = stiffness(elastic_matrix(params.young, params.poisson, base.plane_strain), volume)  # rigid: 0
     centroid = state.centroid
     load = (external_load(model, params, centroid, state.rotation, state.time + dt)
@@ -106,7 +107,15 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
         ends = jnp.stack([model.connector_a, model.connector_b], 1)
         load = load + jax.ops.segment_sum(conn_load.reshape(-1, conn_load.shape[-1]), ends.reshape(-1), n)
         coupling = (ends, conn_stiff)
-    k_inv = groups.grouped(stiff + 2.0 * mass / dt ** 2, proj, model, coupling)
+    maps = None
+    if model.group_members.shape[0]:  # each group member's dofs from the group's reduced ones
+        verts = to_world(centroid[:, None, :], state.rotation[:, None], model.local_vertices)
+        maps = jnp.where((model.mesh >= 0)[:, None, None], groups.mesh_maps(verts), model.dof_basis)
+    k_inv = groups.grouped(stiff + 2.0 * mass / dt ** 2, proj, model, maps, coupling)
+    # Impacts see the step's flexibility: (M + K dt^2 / 2)^-1 = (2 / dt^2) K_eff^-1, which is
+    # M^-1 for rigid bodies; a stiff mode (omega dt >> 1: a meshed block of E = 1e14, a
+    # stiff bolt) takes an impulse as the structure it is over a step, not as loose masses.
+    m_inv = groups.scaled(k_inv, 2.0 / dt ** 2)
     vel = params.dynamic * matvec(proj, state.velocity)  # static analysis: each step starts at rest
 
     # Detection is discrete (which pairs to test): no derivative flows through it.
@@ -165,6 +174,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     v_star = vel + groups.apply(m_inv, apply_jacobian_t(jac, c, imp.force, n))
     struck = c.valid & approaching & ~sustained
     clock = impact_clock(t_hit, struck, impacting & (imp.force[:, 0] > 0), c.a, c.b, model.fixed)
+    clock = mesh_clock(model.mesh, clock)
     shift = -(v_star - vel) * clock[:, None]
 
     # 2. Contact forces over the step (eq. 39); gap evaluated exactly at the predictor.
@@ -218,14 +228,15 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     d_geo = d_base + groups.apply(k_inv, apply_jacobian_t(jac_mid, c, con.force, n))
     new_vel = newmark_velocity(d_geo - shift, v_star, dt, proj)
     strain = d_geo[:, 3:]
+    turn_ref, offset = mesh_rotation(base, volume, centroid, d_geo[:, 2])
     new_state = State(
         time=state.time + dt,
         origin=state.origin,
-        displacement=state.displacement + d_geo[:, :2],
+        displacement=state.displacement + d_geo[:, :2] + finite_rotation_shift(turn_ref, offset),
         rotation=state.rotation + d_geo[:, 2],
         velocity=new_vel,
-        stretch=updated_stretch(state.stretch, state.rotation, d_geo[:, 2], strain),
-        stress=state.stress + jnp.einsum("nij,nj->ni", elastic_matrix(params.young, params.poisson,
+        stretch=updated_stretch(state.stretch, state.rotation, d_geo[:, 2], strain, turn_ref),
+        stress=rotated_stress(state.stress, d_geo[:, 2]) + jnp.einsum("nij,nj->ni", elastic_matrix(params.young, params.poisson,
                                                                       base.plane_strain), strain),
         contact_key=c.key,
         contact_force=con.force,

@@ -53,6 +53,7 @@ class Model:
     inner_radius: jax.Array  # (N,) inner radius of a ring, 0 otherwise
     local_vertices: jax.Array  # (N, V, 2)
     vertex_mask: jax.Array  # (N, V) bool
+    edge_mask: jax.Array  # (N, V) bool: edge v (vertex v to v + 1) is a contact surface (not inside a mesh)
     n_vertices: jax.Array  # (N,) int32
     area: jax.Array  # (N,)
     polar_moment: jax.Array  # (N,) integral of r^2 dA about the centroid
@@ -62,6 +63,8 @@ class Model:
     gravity_scale: jax.Array  # (N,) 1.0 where gravity acts, 0.0 where it is ignored
     material: jax.Array  # (N,) int32 index into the material tables of Params
     dof_projector: jax.Array  # (N, 6, 6) projector onto the active dof subspace
+    dof_basis: jax.Array  # (N, 6, 6) its orthonormal basis as columns (zero columns pad)
+    mesh: jax.Array  # (N,) int32 the meshed block a triangle element belongs to (-1: not an element)
     load_body: jax.Array  # (L,) int32 body of each point load
     load_point: jax.Array  # (L, 2) its point of application, body-local (moves with the body)
     joint_key: jax.Array  # (J,) int64 contact key of each cemented joint found at t = 0 (-2: padding)
@@ -75,7 +78,9 @@ class Model:
     connector_pb: jax.Array  # (K, 2) attachment point on body b, body-local
     connector_length: jax.Array  # (K,) rest length l0
     connector_chord0: jax.Array  # (K, 2) unit direction from a's to b's attachment point at t = 0
-    group_members: jax.Array  # (G, S) int32 bodies of each dof group (tied by connectors; -1: empty slot)
+    group_members: jax.Array  # (G, S) int32 bodies of each dof group (meshed or tied by connectors; -1: empty)
+    group_dofs: jax.Array  # (G, S, 6) int32 the group's reduced dofs behind each member's 6 (-1: none; groups.py)
+    group_free: jax.Array  # (G, R) bool: a reduced dof that exists and is not fixed
     body_group: jax.Array  # (N,) int32 a body's dof group (-1: independent)
     body_slot: jax.Array  # (N,) int32 its slot in that group
     capacity: Capacities = static_field()

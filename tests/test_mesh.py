@@ -4,7 +4,7 @@ import pytest
 
 from jaxdda.bodies import geometry
 from jaxdda.errors import SceneError
-from jaxdda.scene.mesh import check_mesh, mesh_polygon
+from jaxdda.scene.mesh import check_mesh, mesh_polygon, rectangle_mesh
 
 SQUARE = [(0, 0), (2, 0), (2, 2), (0, 2)]
 L_SHAPE = [(0, 0), (3, 0), (3, 1), (1, 1), (1, 3), (0, 3)]  # concave, area 5
@@ -70,3 +70,20 @@ def test_bad_meshes_are_named(nodes, triangles, message):
 def test_mesher_rejects_a_self_intersecting_polygon():
     with pytest.raises(SceneError, match="not valid"):
         mesh_polygon([(0, 0), (1, 1), (1, 0), (0, 1)])
+
+
+@pytest.mark.parametrize("nx, ny", [(1, 1), (3, 2), (4, 5)])
+def test_rectangle_mesh_tiles_the_rectangle(nx, ny):
+    nodes, triangles = rectangle_mesh(-1.0, 2.0, 3.0, 2.5, nx, ny)
+    nodes, triangles = check_mesh("mesh", nodes, triangles)  # counter-clockwise, conforming
+    assert len(nodes) == (nx + 1) * (ny + 1) and len(triangles) == 2 * nx * ny
+    p = nodes[triangles]
+    area = 0.5 * ((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1]) - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
+    np.testing.assert_allclose(area, 4.0 * 0.5 / (2 * nx * ny), rtol=1e-12)
+
+
+def test_rectangle_mesh_rejects_bad_sizes():
+    with pytest.raises(SceneError, match="field 'nx' must be a positive integer"):
+        rectangle_mesh(0, 0, 1, 1, 0, 1)
+    with pytest.raises(SceneError, match="is empty"):
+        rectangle_mesh(0, 0, 0, 1, 1, 1)

@@ -72,18 +72,63 @@ def stress_load(stress: jax.Array, volume: jax.Array) -> jax.Array:
     return jnp.concatenate([jnp.zeros(stress.shape[:-1] + (3,)), -volume[:, None] * stress], -1)
 
 
+def rotated_stress(stress: jax.Array, turn: jax.Array) -> jax.Array:
+    """(N, 3) stress [s_x, s_y, t_xy] carried along by a rotation ``turn`` (N,): R s R^T,
+    so a stressed body that turns keeps its stress in its own frame (objectivity)."""
+    c, s = jnp.cos(turn), jnp.sin(turn)
+    sx, sy, t = stress[:, 0], stress[:, 1], stress[:, 2]
+    mean, half, rot = 0.5 * (sx + sy), 0.5 * (sx - sy), c * c - s * s
+    sin2 = 2.0 * s * c
+    return jnp.stack([mean + half * rot - t * sin2, mean - half * rot + t * sin2, half * sin2 + t * rot], -1)
+
+
 def strain_tensor(strain: jax.Array) -> jax.Array:
     """(N, 2, 2) [[eps_x, gamma/2], [gamma/2, eps_y]] from (N, 3) strain dofs."""
     ex, ey, g = strain[..., 0], strain[..., 1], 0.5 * strain[..., 2]
     return jnp.stack([jnp.stack([ex, g], -1), jnp.stack([g, ey], -1)], -2)
 
 
-def updated_stretch(stretch: jax.Array, rotation: jax.Array, turn: jax.Array, strain: jax.Array) -> jax.Array:
+def updated_stretch(stretch: jax.Array, rotation: jax.Array, turn: jax.Array, strain: jax.Array,
+                    turn_ref: jax.Array | None = None) -> jax.Array:
     """S after a step: x - c -> (R(turn) + E)(x - c) (post-adjusted field, eqs. 17-18), so
-    R(theta + turn) S' = (R(turn) + E) R(theta) S."""
+    R(theta + turn) S' = (R(turn) + E) R(theta) S.
+
+    An element of a meshed block turns with its mesh instead (``turn_ref``, see
+    ``mesh_rotation``): x - c -> (R(turn_ref) + (turn - turn_ref) [[0, -1], [1, 0]] + E)(x - c),
+    linear in its nodal displacements, so elements that share a node keep sharing it."""
     e = strain_tensor(strain)
+    if turn_ref is not None:
+        dt = (turn - turn_ref)[..., None, None]
+        e = e + rotation_matrix(turn_ref) - rotation_matrix(turn) + dt * jnp.array([[0.0, -1.0], [1.0, 0.0]])
     back = rotation_matrix(-(rotation + turn))
     return stretch + back @ e @ rotation_matrix(rotation) @ stretch
+
+
+def mesh_rotation(model, volume: jax.Array, centroid: jax.Array, turn: jax.Array):
+    """Per body, the finite rotation of the step (N,) and the offset (N, 2) of its centroid
+    from the centre it turns about: its own turn and zero, except for the elements of a
+    meshed block, which all turn by their mesh's area-weighted mean rotation about the
+    mesh's centroid. So a meshed block in rigid motion turns exactly, like a block (eq.
+    16), while its nodes move by the finite element field plus one common correction."""
+    n = turn.shape[0]
+    element = model.mesh >= 0
+    seg = jnp.where(element, model.mesh, n)
+    weight = jnp.where(element, volume, 0.0)
+    total = jax.ops.segment_sum(weight, seg, n + 1)
+    total = jnp.where(total > 0, total, 1.0)
+    mean_turn = jax.ops.segment_sum(weight * turn, seg, n + 1) / total
+    centre = jax.ops.segment_sum(weight[:, None] * centroid, seg, n + 1) / total[:, None]
+    turn_ref = jnp.where(element, mean_turn[seg], turn)
+    offset = jnp.where(element[:, None], centroid - centre[seg], 0.0)
+    return turn_ref, offset
+
+
+def finite_rotation_shift(turn: jax.Array, offset: jax.Array) -> jax.Array:
+    """(R(turn) - I - turn [[0, -1], [1, 0]]) offset: where a point at ``offset`` from the
+    centre of rotation goes beyond the linear field's turn (cancellation-free)."""
+    c1 = -2.0 * jnp.sin(0.5 * turn) ** 2
+    s1 = jnp.sin(turn) - turn
+    return jnp.stack([c1 * offset[:, 0] - s1 * offset[:, 1], s1 * offset[:, 0] + c1 * offset[:, 1]], -1)
 
 
 def spectral_norm_2x2(a: jax.Array, det: jax.Array) -> jax.Array:

@@ -25,15 +25,21 @@ def spd_inverse(a: jax.Array) -> jax.Array:
     XLA:CPU's intra-op thread pool and wait for it, so two of them running side by side on
     a 2-thread pool deadlock (docs/design.md, "Monte Carlo and devices")."""
     n = a.shape[-1]
-    for k in range(n):
-        pivot = a[..., k, k][..., None]
-        row = a[..., k, :] / pivot                    # row k of the eliminated matrix
-        col = a[..., :, k]
+
+    def sweep(k, a):
+        pivot = jax.lax.dynamic_index_in_dim(jax.lax.dynamic_index_in_dim(a, k, -2, False), k, -1, True)
+        row = jax.lax.dynamic_index_in_dim(a, k, -2, False) / pivot  # row k of the eliminated matrix
+        col = jax.lax.dynamic_index_in_dim(a, k, -1, False)
         a = a - col[..., :, None] * row[..., None, :]
-        a = a.at[..., k, :].set(row)
-        a = a.at[..., :, k].set(-col / pivot)
-        a = a.at[..., k, k].set(1.0 / pivot[..., 0])
-    return a
+        at_k = jnp.arange(n) == k
+        a = jnp.where(at_k[:, None], row[..., None, :], a)
+        return jnp.where(at_k, jnp.where(at_k[:, None], 1.0 / pivot[..., None], -col[..., :, None] / pivot[..., None]), a)
+
+    if n <= 12:  # the 6x6 per-body inverses: unrolled
+        for k in range(n):
+            a = sweep(k, a)
+        return a
+    return jax.lax.fori_loop(0, n, sweep, a)  # a group's R x R matrix: one traced sweep
 
 
 def inverse_on_subspace(a: jax.Array, projector: jax.Array) -> jax.Array:

@@ -46,7 +46,7 @@ def detect(model: Model, centroid: jax.Array, rotation: jax.Array, reach: jax.Ar
     lo, hi = bounding_boxes(model, centroid, verts, reach)
     pairs, ok, need_candidates = grid_pairs(lo, hi, cap.candidates)
     i, j = pairs[:, 0], pairs[:, 1]
-    ok = ok & ~(model.fixed[i] & model.fixed[j])
+    ok = ok & ~(model.fixed[i] & model.fixed[j]) & ~((model.mesh[i] >= 0) & (model.mesh[i] == model.mesh[j]))
     poly_i, poly_j = model.kind[i] == POLYGON, model.kind[j] == POLYGON
 
     def select(mask, capacity):

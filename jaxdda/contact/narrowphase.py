@@ -10,6 +10,9 @@ afterwards for all slots at once (``detect``). Kinds:
 * polygon-polygon: vertex-edge slots in both directions. Edge-edge contact emerges as
   two vertex-edge contacts; vertex-vertex contact is reduced to the one vertex-edge pair
   (out of four) whose edge line best separates the two corners (Shi's rule).
+
+Features are a polygon's contact surfaces (``Model.edge_mask``) and their start vertices:
+the inside edges of a meshed block are none, and each boundary node counts once.
 """
 from __future__ import annotations
 
@@ -36,6 +39,11 @@ def _cyclic(n_vertices: jax.Array, v_max: int):
 def _take(x: jax.Array, index: jax.Array) -> jax.Array:
     """x (P, V, 2) gathered along V with index (P, V)."""
     return jnp.take_along_axis(x, index[..., None], axis=1)
+
+
+def _take1(x: jax.Array, index: jax.Array) -> jax.Array:
+    """x (P, V) gathered along V with index (P, V)."""
+    return jnp.take_along_axis(x, index, axis=1)
 
 
 def _record(a, b, ra, pa, btype, rb, qb, eb, key) -> Contacts:
@@ -72,7 +80,7 @@ def particle_polygon(model: Model, centroid: jax.Array, verts: jax.Array, p: jax
     radius = model.radius[p][:, None]
     inner = model.inner_radius[p][:, None]
     v = verts[q]  # (P, V, 2)
-    mask = model.vertex_mask[q]
+    mask = model.edge_mask[q]  # contact surfaces, and their start vertices
     nxt, prv = _cyclic(model.n_vertices[q], v_max)
     vn, vp = _take(v, nxt), _take(v, prv)
     inside_ring = ((model.kind[p] == RING)
@@ -132,7 +140,10 @@ def polygon_polygon(model: Model, verts: jax.Array, i: jax.Array, j: jax.Array, 
     """
     v_max = model.max_vertices
     va, vb = verts[i], verts[j]
-    ma, mb = model.vertex_mask[i], model.vertex_mask[j]
+    # Features: the edges that are contact surfaces and their start vertices (in a meshed
+    # block, its boundary edges, and each boundary node once).
+    ea, eb = model.edge_mask[i], model.edge_mask[j]
+    ma, mb = ea, eb
     na, pa = _cyclic(model.n_vertices[i], v_max)
     nb, pb = _cyclic(model.n_vertices[j], v_max)
     van, vap, vbn, vbp = _take(va, na), _take(va, pa), _take(vb, nb), _take(vb, pb)
@@ -152,11 +163,12 @@ def polygon_polygon(model: Model, verts: jax.Array, i: jax.Array, j: jax.Array, 
         return jnp.take_along_axis(x, jnp.broadcast_to(idx[:, :, None], x.shape), axis=1)
 
     # Vertex-vertex (a of A near b of B): four candidate vertex-edge pairs; keep the best.
+    # An edge inside a meshed block is no candidate.
     cand = jnp.stack([
-        gather_e(c_ab, pb),                         # a on B's edge ending at b
-        c_ab,                                       # a on B's edge starting at b
-        jnp.swapaxes(gather_e(c_ba, pa), 1, 2),     # b on A's edge ending at a
-        jnp.swapaxes(c_ba, 1, 2),                   # b on A's edge starting at a
+        jnp.where(_take1(eb, pb)[:, None, :], gather_e(c_ab, pb), -jnp.inf),  # a on B's edge ending at b
+        jnp.where(eb[:, None, :], c_ab, -jnp.inf),                              # a on B's edge starting at b
+        jnp.where(_take1(ea, pa)[:, :, None], jnp.swapaxes(gather_e(c_ba, pa), 1, 2), -jnp.inf),  # b on A's edge ending at a
+        jnp.where(ea[:, :, None], jnp.swapaxes(c_ba, 1, 2), -jnp.inf),          # b on A's edge starting at a
     ], -1)  # (P, Va, Vb, 4)
     winner = jnp.argmax(cand, -1)
 
@@ -173,12 +185,13 @@ def polygon_polygon(model: Model, verts: jax.Array, i: jax.Array, j: jax.Array, 
     vv_ab = (near & (winner == 1)) | (near_end_ab & (win_end_ab == 0))
     len_b = jnp.linalg.norm(vbn - vb, axis=-1) + 1e-300
     len_a = jnp.linalg.norm(van - va, axis=-1) + 1e-300
-    ok_ab = interior(s_ab, t_ab, c_ab, near, near_end_ab, pair_mask, len_b) | (vv_ab & pair_mask)
+    mask_ab = ma[:, :, None] & eb[:, None, :]
+    ok_ab = interior(s_ab, t_ab, c_ab, near, near_end_ab, mask_ab, len_b) | (vv_ab & mask_ab)
     # B's vertex b on A's edge f = (a_f -> a_{f+1}).
     near_t, win_t = jnp.swapaxes(near, 1, 2), jnp.swapaxes(winner, 1, 2)  # (P, Vb, Va)
     near_end_ba = gather_e(near_t, na)
     win_end_ba = gather_e(win_t, na)
-    mask_ba = jnp.swapaxes(pair_mask, 1, 2)
+    mask_ba = mb[:, :, None] & ea[:, None, :]
     vv_ba = (near_t & (win_t == 3)) | (near_end_ba & (win_end_ba == 2))
     ok_ba = interior(s_ba, t_ba, c_ba, near_t, near_end_ba, mask_ba, len_a) | (vv_ba & mask_ba)
 

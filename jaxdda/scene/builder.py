@@ -11,6 +11,7 @@ from jaxdda.bodies import geometry
 from jaxdda.connectors import BEAM, BOLT, SHEAR_FACTOR, SPRING, beam_coefficients
 from jaxdda.errors import SceneError
 from jaxdda.scene import cement, validate
+from jaxdda.scene import mesh as mesh_lib
 from jaxdda.scene.capacity import initial_capacities
 from jaxdda.types import (DISK, KIND_NAMES, NDOF, NO_JOINT, POLYGON, RING, Model, Params, State,
                           zeros_contact_memory)
@@ -38,6 +39,20 @@ class Scene:
         return self.model.n_bodies
 
 
+@dataclasses.dataclass(frozen=True)
+class Mesh:
+    """A meshed block as added: its index, element bodies (one per triangle), nodes (n, 2),
+    triangles (l, 3), which nodes are fixed, and for each node one element body that holds
+    it (for loads or connectors at a node: ``add_load(mesh.holder[k], f, at=mesh.nodes[k])``)."""
+
+    index: int
+    bodies: tuple[int, ...]
+    nodes: np.ndarray
+    triangles: np.ndarray
+    fixed_nodes: np.ndarray
+    holder: np.ndarray
+
+
 @dataclasses.dataclass
 class _Body:
     kind: int
@@ -58,6 +73,11 @@ class _Body:
     poisson: float = 0.0
     plane_strain: bool = False
     stress: np.ndarray = None  # initial [sigma_x, sigma_y, tau_xy]
+    mesh: int = -1  # the meshed block of a triangle element
+    nodes: np.ndarray = None  # an element's node indices in its mesh, in vertex order
+    edges: np.ndarray = None  # an element's edges that lie on its mesh's boundary (contact surfaces)
+    element: int = -1  # its index among the mesh's triangles
+    pinned: np.ndarray = None  # which of an element's nodes are fixed
 
 
 class SceneBuilder:
@@ -78,6 +98,7 @@ class SceneBuilder:
         self._loads: list[tuple[int, np.ndarray, np.ndarray, np.ndarray]] = []
         self._interfaces: dict[tuple[str, str], dict[str, float]] = {}
         self._connectors: list[_Connector] = []
+        self._meshes: list[Mesh] = []
 
     # -- materials ---------------------------------------------------------------------
     def add_material(self, name: str, friction: float = 0.0, restitution: float = 1.0, *, cohesion: float = 0.0,
@@ -238,6 +259,73 @@ class SceneBuilder:
                                geometry.polygon_second_moments(local)),
                          density, velocity, angular_velocity, (young, poisson, plane, stress))
 
+    # -- meshed blocks (paper section 6.1) ----------------------------------------------
+    def add_mesh(self, nodes, triangles, density, young, poisson=0.0, *, plane="stress", fixed_nodes=(),
+                 velocity=(0.0, 0.0), angular_velocity=0.0, fixed=False, material="default", gravity=True,
+                 stress=None) -> "Mesh":
+        """A deformable block meshed into 3-node triangles (counter-clockwise node triples
+        into ``nodes``) whose unknowns are the nodal displacements (eqs. 93-96): each
+        triangle is a body whose linear field is set by its three nodes, so contacts on the
+        block's boundary act through the area coordinates (eqs. 98-105). ``fixed_nodes``
+        (indices) do not move; ``fixed=True`` fixes them all. The block moves at
+        ``velocity`` and spins at ``angular_velocity`` about its centroid at t = 0.
+        Returns a ``Mesh``: its element bodies, and an element holding each node (for loads
+        and connectors at a node)."""
+        label = f"mesh {len(self._meshes)}"
+        nodes, triangles = mesh_lib.check_mesh(label, nodes, triangles)
+        validate.check_positive(label, "density", density)
+        validate.check_positive(label, "young", young)
+        validate.check_flag(label, "fixed", fixed)
+        try:
+            pinned = np.unique(np.asarray(fixed_nodes, dtype=np.int64).reshape(-1))
+        except (TypeError, ValueError):
+            raise SceneError(f"{label}: field 'fixed_nodes' must be a list of node indices, got {fixed_nodes!r}") from None
+        if len(pinned) and (pinned.min() < 0 or pinned.max() >= len(nodes)):
+            bad = pinned[(pinned < 0) | (pinned >= len(nodes))][0]
+            raise SceneError(f"{label}: field 'fixed_nodes' names node {int(bad)} outside 0..{len(nodes) - 1}")
+        pinned_mask = np.zeros(len(nodes), bool)
+        pinned_mask[pinned] = True
+        pinned_mask |= bool(fixed)
+        v = self._point(label, "velocity", velocity)
+        validate.check_finite(label, "angular_velocity", angular_velocity)
+        omega = float(angular_velocity)
+        if pinned_mask.any() and (np.any(v != 0) or omega != 0):
+            raise SceneError(f"{label}: a block with fixed nodes cannot have a velocity (fields 'velocity', "
+                             f"'angular_velocity')")
+        d1, d2 = nodes[triangles[:, 1]] - nodes[triangles[:, 0]], nodes[triangles[:, 2]] - nodes[triangles[:, 0]]
+        area2 = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
+        centroids = nodes[triangles].mean(1)
+        center = (area2[:, None] * centroids).sum(0) / area2.sum()
+        count: dict[tuple[int, int], int] = {}
+        for tri in triangles.tolist():
+            for i, j in zip(tri, tri[1:] + tri[:1]):
+                count[(min(i, j), max(i, j))] = count.get((min(i, j), max(i, j)), 0) + 1
+        index = len(self._meshes)
+        bodies = []
+        for k, tri in enumerate(triangles.tolist()):
+            local = nodes[tri] - centroids[k]
+            spin = omega * np.array([-(centroids[k][1] - center[1]), centroids[k][0] - center[0]])
+            body = _Body(POLYGON, centroids[k].copy(), 0.0, 0.0, local, 0.5 * float(area2[k]),
+                         *geometry.polygon_properties(nodes[tri])[2:], 0.0, np.zeros(2), 0.0,
+                         bool(pinned_mask[tri].all()), material, gravity, geometry.polygon_second_moments(local),
+                         mesh=index, nodes=np.asarray(tri), element=k, pinned=pinned_mask[tri],
+                         edges=np.array([count[(min(i, j), max(i, j))] == 1 for i, j in zip(tri, tri[1:] + tri[:1])]))
+            moving = not body.fixed
+            bodies.append(self._add(body, density, v + spin if moving else (0.0, 0.0), omega if moving else 0.0,
+                                    (young, poisson, plane, stress)))
+        holder = np.zeros(len(nodes), np.int64)
+        for k, tri in enumerate(triangles.tolist()):
+            holder[tri] = bodies[k]
+        mesh = Mesh(index, tuple(bodies), nodes, triangles, pinned_mask, holder)
+        self._meshes.append(mesh)
+        return mesh
+
+    def add_meshed_polygon(self, vertices, density, young, poisson=0.0, *, max_edge=None, **kwargs) -> "Mesh":
+        """``add_mesh`` of a simple polygon meshed by the built-in mesher (ear clipping,
+        then midpoint refinement until no edge is longer than ``max_edge``)."""
+        nodes, triangles = mesh_lib.mesh_polygon(vertices, max_edge)
+        return self.add_mesh(nodes, triangles, density, young, poisson, **kwargs)
+
     # -- build -------------------------------------------------------------------------
     def build(self) -> "Scene":
         """Validate everything and assemble the scene."""
@@ -253,10 +341,10 @@ class SceneBuilder:
         validate.check_finite("scene", "dynamic", self.dynamic)
         if not 0.0 <= self.dynamic <= 1.0:
             raise SceneError(f"scene: field 'dynamic' must be in [0, 1], got {self.dynamic}")
-        labels = [self._label(b.kind, i) for i, b in enumerate(self._bodies)]
+        labels = [_body_label(b, i) for i, b in enumerate(self._bodies)]
         shapes = [self._world_shape(b) for b in self._bodies]
         size = _scene_size(shapes)
-        validate.check_no_interpenetration(shapes, labels, tol=1e-9 * size)
+        validate.check_no_interpenetration(shapes, labels, tol=1e-9 * size, adjacent=self._adjacent_elements())
         if self.margin is not None:
             validate.check_finite("scene", "margin", self.margin)
             if self.margin < 0:
@@ -270,9 +358,11 @@ class SceneBuilder:
         v_max = max([len(b.local) for b in self._bodies] + [1])
         local = np.zeros((n, v_max, 2))
         mask = np.zeros((n, v_max), bool)
+        edges = np.zeros((n, v_max), bool)
         for i, b in enumerate(self._bodies):
             local[i, : len(b.local)] = b.local
             mask[i, : len(b.local)] = True
+            edges[i, : len(b.local)] = True if b.edges is None else b.edges
         kinds = np.array([b.kind for b in self._bodies], np.int32)
         bound = np.array([b.radius if b.kind != POLYGON else np.max(np.linalg.norm(b.local, axis=1))
                           for b in self._bodies])
@@ -286,7 +376,7 @@ class SceneBuilder:
             kind=jnp.asarray(kinds), fixed=jnp.asarray(fixed),
             radius=jnp.asarray([b.radius for b in self._bodies], float),
             inner_radius=jnp.asarray([b.inner_radius for b in self._bodies], float),
-            local_vertices=jnp.asarray(local), vertex_mask=jnp.asarray(mask),
+            local_vertices=jnp.asarray(local), vertex_mask=jnp.asarray(mask), edge_mask=jnp.asarray(edges),
             n_vertices=jnp.asarray(mask.sum(1).astype(np.int32)),
             area=jnp.asarray([b.area for b in self._bodies]), polar_moment=jnp.asarray([b.polar for b in self._bodies]),
             bound_radius=jnp.asarray(bound),
@@ -295,11 +385,14 @@ class SceneBuilder:
             second_moment=jnp.asarray(np.array([b.moments for b in self._bodies])),
             plane_strain=jnp.asarray([b.plane_strain for b in self._bodies]),
             dof_projector=jnp.asarray(np.array([_projector(b) for b in self._bodies])),
+            dof_basis=jnp.asarray(np.array([_basis(b) for b in self._bodies])),
+            mesh=jnp.asarray(np.array([b.mesh for b in self._bodies], np.int32)),
             load_body=jnp.asarray([ld[0] for ld in self._loads], jnp.int32),
             load_point=jnp.asarray(np.reshape([ld[1] for ld in self._loads], (-1, 2))),
             joint_key=jnp.full((1,), NO_JOINT, jnp.int64), joint_a=jnp.zeros((1,), jnp.int32),
             joint_b=jnp.zeros((1,), jnp.int32), joint_point=jnp.zeros((1, 2)),
-            **connector_model(self._connectors, centers, n),
+            **connector_model(self._connectors, centers),
+            **dof_groups(self._bodies, self._connectors),
             capacity=capacity, n_bodies=n, max_vertices=v_max)
         key, force = zeros_contact_memory(capacity.contacts)
         state = State(time=jnp.asarray(0.0), origin=jnp.asarray(centers), displacement=jnp.zeros((n, 2)),
@@ -346,7 +439,7 @@ class SceneBuilder:
             outside = validate.point_outside_by(point, self._world_shape(b))
             if outside > 1e-9 * size:
                 raise SceneError(f"{label}: field '{field}' {tuple(point.tolist())} lies {outside:.3g} m outside "
-                                 f"{self._label(b.kind, body)}")
+                                 f"{_body_label(b, body)}")
         validate.check_finite(label, "pretension", conn.pretension)
         conn.pretension = float(conn.pretension)
         if conn.rest_length is not None:
@@ -355,6 +448,15 @@ class SceneBuilder:
                 raise SceneError(f"{label}: field 'rest_length' must be >= 0, got {conn.rest_length}")
         self._connectors.append(conn)
         return len(self._connectors) - 1
+
+    def _adjacent_elements(self) -> set[tuple[int, int]]:
+        """Pairs of element bodies of one mesh that share a node (they touch by construction)."""
+        by_node: dict[tuple[int, int], list[int]] = {}
+        for i, b in enumerate(self._bodies):
+            if b.mesh >= 0:
+                for node in b.nodes.tolist():
+                    by_node.setdefault((b.mesh, node), []).append(i)
+        return {(i, j) for group in by_node.values() for i in group for j in group if i < j}
 
     def _label(self, kind: int, index: int | None = None) -> str:
         return f"body {len(self._bodies) if index is None else index} ({KIND_NAMES[kind]})"
@@ -371,7 +473,7 @@ class SceneBuilder:
         return p
 
     def _add(self, body: _Body, density, velocity, omega, elastic) -> int:
-        label = self._label(body.kind)
+        label = _body_label(body, len(self._bodies))
         validate.check_positive(label, "density", density)
         young, poisson, plane, stress = elastic
         body.stress = np.zeros(3)
@@ -440,9 +542,8 @@ class _Connector:
     rest_length: float | None  # None: the initial length
 
 
-def connector_model(connectors: list[_Connector], centers: np.ndarray, n: int) -> dict:
-    """The Model fields of the connectors and of the dof groups they make (bodies tied
-    directly or through others share one group)."""
+def connector_model(connectors: list[_Connector], centers: np.ndarray) -> dict:
+    """The Model fields of the connectors."""
     k = len(connectors)
     a = np.array([c.body_a for c in connectors], np.int32)
     b = np.array([c.body_b for c in connectors], np.int32)
@@ -451,13 +552,10 @@ def connector_model(connectors: list[_Connector], centers: np.ndarray, n: int) -
     chord = np.reshape([c.at_b - c.at_a for c in connectors], (k, 2))
     length = np.linalg.norm(chord, axis=1)
     rest = np.array([length[i] if c.rest_length is None else c.rest_length for i, c in enumerate(connectors)])
-    members, body_group, body_slot = dof_groups(n, a, b)
     return dict(connector_kind=jnp.asarray([c.kind for c in connectors], jnp.int32).reshape(k),
                 connector_a=jnp.asarray(a), connector_b=jnp.asarray(b), connector_pa=jnp.asarray(pa),
                 connector_pb=jnp.asarray(pb), connector_length=jnp.asarray(rest.reshape(k)),
-                connector_chord0=jnp.asarray(chord / np.where(length > 0, length, 1.0)[:, None]),
-                group_members=jnp.asarray(members), body_group=jnp.asarray(body_group),
-                body_slot=jnp.asarray(body_slot))
+                connector_chord0=jnp.asarray(chord / np.where(length > 0, length, 1.0)[:, None]))
 
 
 def connector_params(connectors: list[_Connector]) -> dict:
@@ -468,9 +566,12 @@ def connector_params(connectors: list[_Connector]) -> dict:
                 connector_pretension=field("pretension"))
 
 
-def dof_groups(n: int, a: np.ndarray, b: np.ndarray):
-    """Connected components of the bodies tied by connectors (a[k], b[k]): members (G, S)
-    (-1 padded), and per body its group and slot (-1: independent)."""
+def dof_groups(bodies: list[_Body], connectors: list[_Connector]) -> dict:
+    """The Model fields of the dof groups (groups.py): bodies tied by connectors, directly
+    or through others, and the elements of a meshed block share one group. A body tied by
+    connectors owns 6 reduced dofs (those of its active subspace); an element's are its
+    three nodes' (u, v), shared with the elements around each node; fixed nodes have none."""
+    n = len(bodies)
     parent = np.arange(n)
 
     def root(i):
@@ -479,21 +580,46 @@ def dof_groups(n: int, a: np.ndarray, b: np.ndarray):
             i = parent[i]
         return i
 
-    for i, j in zip(a.tolist(), b.tolist()):
-        parent[root(i)] = root(j)
+    ties = [(c.body_a, c.body_b) for c in connectors]
+    first: dict[int, int] = {}
+    for i, b in enumerate(bodies):
+        if b.mesh >= 0:
+            ties.append((first.setdefault(b.mesh, i), i))
     tied = np.zeros(n, bool)
-    tied[a], tied[b] = True, True
+    for i, j in ties:
+        parent[root(i)] = root(j)
+        tied[[i, j]] = True
     comps: dict[int, list[int]] = {}
     for i in np.flatnonzero(tied).tolist():
         comps.setdefault(root(i), []).append(i)
     groups = list(comps.values())
     size = max([len(g) for g in groups], default=0)
     members = -np.ones((len(groups), size), np.int32)
+    dofs = -np.ones((len(groups), size, NDOF), np.int32)
+    count = np.zeros(len(groups), np.int64)
     body_group, body_slot = -np.ones(n, np.int32), -np.ones(n, np.int32)
-    for g, bodies in enumerate(groups):
-        members[g, : len(bodies)] = bodies
-        body_group[bodies], body_slot[bodies] = g, np.arange(len(bodies))
-    return members, body_group, body_slot
+    for g, group in enumerate(groups):
+        members[g, : len(group)] = group
+        body_group[group], body_slot[group] = g, np.arange(len(group))
+        node_dof: dict[tuple[int, int], int] = {}
+        for s, i in enumerate(group):
+            b = bodies[i]
+            if b.mesh >= 0:
+                for k, node in enumerate(b.nodes.tolist()):
+                    if b.pinned[k]:
+                        continue
+                    if (b.mesh, node) not in node_dof:
+                        node_dof[(b.mesh, node)] = count[g]
+                        count[g] += 2
+                    dofs[g, s, 2 * k: 2 * k + 2] = node_dof[(b.mesh, node)] + np.arange(2)
+            else:
+                active = np.flatnonzero(np.abs(_basis(b)).sum(0) > 0)
+                dofs[g, s, active] = count[g] + np.arange(len(active))
+                count[g] += len(active)
+    r = int(max(count.max(initial=0), 1))
+    free = np.arange(r)[None, :] < count[:, None]
+    return dict(group_members=jnp.asarray(members), group_dofs=jnp.asarray(dofs), group_free=jnp.asarray(free),
+                body_group=jnp.asarray(body_group), body_slot=jnp.asarray(body_slot))
 
 
 def _check_contact_law(label: str, law: dict) -> None:
@@ -505,6 +631,22 @@ def _check_contact_law(label: str, law: dict) -> None:
             raise SceneError(f"{label}: field '{field}' must be >= 0, got {value}")
     if law.get("restitution", 0.0) > 1.0:
         raise SceneError(f"{label}: field 'restitution' must be in [0, 1], got {law['restitution']}")
+
+
+def _basis(b: _Body) -> np.ndarray:
+    """An orthonormal basis of the body's active dof subspace as columns (zero columns pad)."""
+    p = _projector(b)
+    basis = p.copy()
+    if np.allclose(p, PARTICLE_PROJECTOR):  # e0, e1, e2, (e3 + e4) / sqrt 2
+        basis = RIGID_PROJECTOR.copy()
+        basis[3:5, 3] = np.sqrt(0.5)
+    return basis
+
+
+def _body_label(b: _Body, index: int) -> str:
+    if b.mesh >= 0:
+        return f"body {index} (element {b.element} of mesh {b.mesh})"
+    return f"body {index} ({KIND_NAMES[b.kind]})"
 
 
 def _projector(b: _Body) -> np.ndarray:

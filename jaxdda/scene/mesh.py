@@ -3,7 +3,8 @@
 ``mesh_polygon`` meshes a simple polygon (convex or concave) by ear clipping, then splits
 every triangle into four at its edge midpoints until no edge is longer than ``max_edge``
 (the mesh stays conforming: a shared edge is split once for both of its triangles).
-``check_mesh`` validates a mesh given by the user: every error names the triangle or node.
+``rectangle_mesh`` is a structured mesh of a rectangle. ``check_mesh`` validates a mesh
+given by the user: every error names the triangle or node.
 """
 from __future__ import annotations
 
@@ -85,6 +86,26 @@ def mesh_polygon(vertices, max_edge: float | None = None) -> tuple[np.ndarray, n
             raise SceneError(f"mesh: field 'max_edge' must be a positive number, got {max_edge!r}")
         nodes, triangles = refine(nodes, triangles, float(max_edge))
     return nodes, triangles
+
+
+def rectangle_mesh(x0: float, y0: float, x1: float, y1: float, nx: int, ny: int) -> tuple[np.ndarray, np.ndarray]:
+    """A structured mesh of the rectangle [x0, x1] x [y0, y1]: nx by ny cells, each cut
+    into two counter-clockwise triangles along alternating diagonals. Nodes row by row
+    from (x0, y0)."""
+    for field, value in (("nx", nx), ("ny", ny)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise SceneError(f"mesh: field '{field}' must be a positive integer, got {value!r}")
+    if not (np.isfinite([x0, y0, x1, y1]).all() and x1 > x0 and y1 > y0):
+        raise SceneError(f"mesh: the rectangle ({x0}, {y0}) - ({x1}, {y1}) is empty or not finite")
+    xs, ys = np.linspace(x0, x1, nx + 1), np.linspace(y0, y1, ny + 1)
+    nodes = np.stack(np.meshgrid(xs, ys), -1).reshape(-1, 2)
+    triangles = []
+    for j in range(ny):
+        for i in range(nx):
+            a, b = j * (nx + 1) + i, j * (nx + 1) + i + 1
+            c, d = b + nx + 1, a + nx + 1
+            triangles += [(a, b, c), (a, c, d)] if (i + j) % 2 == 0 else [(a, b, d), (b, c, d)]
+    return nodes, np.asarray(triangles, np.int32)
 
 
 def check_mesh(label: str, nodes, triangles) -> tuple[np.ndarray, np.ndarray]:

@@ -31,6 +31,7 @@ class Shape:
     connectors: int
     groups: int
     group_size: int
+    group_dofs: int
     capacity: Capacities
 
     @staticmethod
@@ -43,6 +44,7 @@ class Shape:
                      most(lambda s: s.params.friction.shape[0]), most(lambda s: s.model.load_body.shape[0]),
                      most(lambda s: s.model.joint_key.shape[0]), most(lambda s: s.model.connector_a.shape[0]),
                      most(lambda s: s.model.group_members.shape[0]), most(lambda s: s.model.group_members.shape[1]),
+                     most(lambda s: s.model.group_free.shape[1]),
                      Capacities(*np.max(caps, 0).tolist()))
 
 
@@ -73,11 +75,13 @@ def pad_scene(scene: Scene, shape: Shape) -> tuple[Model, State, Params]:
         kind=bodies(m.kind, DISK), fixed=bodies(m.fixed, True), radius=bodies(m.radius, size),
         inner_radius=bodies(m.inner_radius, 0.0), local_vertices=bodies(verts, 0.0),
         vertex_mask=bodies(_pad(np.asarray(m.vertex_mask), shape.vertices, False, axis=1), False),
+        edge_mask=bodies(_pad(np.asarray(m.edge_mask), shape.vertices, False, axis=1), False),
         n_vertices=bodies(m.n_vertices, 0), area=bodies(m.area, np.pi * size ** 2),
         polar_moment=bodies(m.polar_moment, 0.5 * np.pi * size ** 4),
         second_moment=bodies(m.second_moment, 0.0), plane_strain=bodies(m.plane_strain, False),
         bound_radius=bodies(m.bound_radius, size), gravity_scale=bodies(m.gravity_scale, 0.0),
         material=bodies(m.material, 0), dof_projector=bodies(m.dof_projector, 0.0),
+        dof_basis=bodies(m.dof_basis, 0.0), mesh=bodies(m.mesh, -1),
         load_body=_pad(m.load_body, shape.loads, 0), load_point=_pad(m.load_point, shape.loads, 0.0),
         joint_key=_pad(m.joint_key, shape.joints, NO_JOINT), joint_a=_pad(m.joint_a, shape.joints, 0),
         joint_b=_pad(m.joint_b, shape.joints, 0), joint_point=_pad(m.joint_point, shape.joints, 0.0),
@@ -85,6 +89,8 @@ def pad_scene(scene: Scene, shape: Shape) -> tuple[Model, State, Params]:
            for f, fill in (("connector_kind", 0), ("connector_a", 0), ("connector_b", 1), ("connector_pa", 0.0),
                            ("connector_pb", 0.0), ("connector_length", 1.0), ("connector_chord0", 1.0))},
         group_members=_pad(_pad(np.asarray(m.group_members), shape.group_size, -1, axis=1), shape.groups, -1),
+        group_dofs=_pad(_pad(np.asarray(m.group_dofs), shape.group_size, -1, axis=1), shape.groups, -1),
+        group_free=_pad(_pad(np.asarray(m.group_free), shape.group_dofs, False, axis=1), shape.groups, False),
         body_group=bodies(m.body_group, -1), body_slot=bodies(m.body_slot, -1),
         capacity=shape.capacity, n_bodies=shape.bodies, max_vertices=shape.vertices)
 

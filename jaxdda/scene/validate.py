@@ -194,13 +194,16 @@ def _bounding_boxes(shapes) -> np.ndarray:
     return boxes
 
 
-def check_no_interpenetration(shapes: list, labels: list[str], tol: float) -> None:
-    """Raise SceneError for the first pair of shapes overlapping by more than ``tol``."""
+def check_no_interpenetration(shapes: list, labels: list[str], tol: float, adjacent=frozenset()) -> None:
+    """Raise SceneError for the first pair of shapes overlapping by more than ``tol``;
+    pairs (i < j) in ``adjacent`` (elements of one mesh sharing a node) are not checked."""
     boxes = _bounding_boxes(shapes)
     for i in range(len(shapes) - 1):
         rest = boxes[i + 1:]
         gap = np.maximum(rest[:, :2] - boxes[i, 2:], boxes[i, :2] - rest[:, 2:]).max(axis=1)
         for j in i + 1 + np.flatnonzero(gap <= tol):
+            if (i, int(j)) in adjacent:
+                continue
             depth = overlap_depth(shapes[i], shapes[j])
             if depth > tol:
                 raise SceneError(
