@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from jaxdda.scene.builder import Scene, SceneBuilder
+from jaxdda.scene.mesh import rectangle_mesh
 
 G = 10.0
 HEAVY = 1e11
@@ -122,6 +123,23 @@ def cemented_pull(heavy: bool = False, *, height: float = 0.0, force: float = 10
     b2 = sb.add_polygon(vertices=_rect(0.0, -1.0, 2.0, 1.0), density=1000.0, material="cement")
     _support(sb, heavy, 1000.0, vertices=_rect(-2.0, -2.0, 0.0, 2.0), material="cement")
     sb.add_load(b2, force=(force, 0.0), at=(1.0, height), rate=(rate, 0.0))
+    return sb.build()
+
+
+def disk_between_blocks(heavy: bool = False, *, vy: float = 1.0, cells: tuple[int, int] = (12, 2), young: float = 1e14,
+                        poisson: float = 0.45) -> Scene:
+    """7.9: a rigid disk r = 0.5 (density 2500, no gravity) starts at (0, 0) with velocity
+    (1, ``vy``) between a fixed rigid block whose bottom face is y = 0.75 and a block of
+    height 0.5 whose top face is y = -0.75, meshed into 3-node triangles (``cells`` = nx by ny
+    rectangles, two triangles each; E = ``young``, nu = ``poisson``) and held by its bottom nodes. Elastic
+    frictionless impacts: 2 vy collisions and back at (1, 0) at t = 1 s (20 steps of 0.05).
+    The paper gives no widths or density of the blocks: both span x = -1 .. 2, density
+    2500. Bodies: 0 the disk, 1 the upper block, then the elements of the lower one."""
+    sb = SceneBuilder(dt=0.05, gravity=(0.0, 0.0), name="paper-7.9")
+    sb.add_disk(center=(0.0, 0.0), radius=0.5, density=2500.0, velocity=(1.0, vy))
+    _support(sb, heavy, 2500.0, vertices=_rect(-1.0, 0.75, 2.0, 1.25))
+    nodes, triangles = rectangle_mesh(-1.0, -1.25, 2.0, -0.75, *cells)
+    sb.add_mesh(nodes, triangles, 2500.0, young, poisson, fixed_nodes=np.flatnonzero(nodes[:, 1] == -1.25))
     return sb.build()
 
 

@@ -13,6 +13,7 @@ _EXAMPLES = {
     "paper-7.6": (paper.block_pull, 100, "a block pulled over a base with cohesion shared by two corners"),
     "paper-7.7": (paper.disk_pull, 500, "a disk pulled over a frictional surface (rolling, slip)"),
     "paper-7.8": (paper.cemented_pull, 100, "a block pulled off a cemented interface"),
+    "paper-7.9": (paper.disk_between_blocks, 20, "a disk bouncing between a block and a meshed block (vy=)"),
     "paper-7.10": (paper.particle_chain, 1000, "a chain of disks and star blocks joined by springs, dropped on a disk"),
     "incline": (practical.incline, 100, "a block sliding down a 30 degree incline (friction)"),
     "rolling-disk": (practical.rolling_disk, 300, "a disk rolling to rest against rolling resistance"),
