@@ -65,6 +65,54 @@ def test_round_trip(tmp_path):
     np.testing.assert_allclose(np.asarray(scene.params.load_rate), [[0.0, 1.0]])
 
 
+MESHED = {
+    "dt": 0.01,
+    "bodies": [{"type": "polygon", "vertices": [[0, 3], [1, 3], [1, 4], [0, 4]], "density": 1, "fixed": True}],
+    "meshes": [{"nodes": [[0, 0], [1, 0], [1, 1], [0, 1]], "triangles": [[0, 1, 2], [0, 2, 3]], "density": 2000,
+                "young": 1e9, "poisson": 0.2, "fixed_nodes": [0, 1]},
+               {"vertices": [[3, 0], [5, 0], [5, 1], [3, 1]], "max_edge": 1.2, "density": 2000, "young": 1e8}],
+    "loads": [{"body": {"mesh": 0, "node": 2}, "force": [5.0, 0.0]}],
+    "connectors": [{"type": "spring", "body_a": 0, "body_b": {"mesh": 0, "node": 3}, "at_a": [0, 3],
+                    "stiffness": 1e5}],
+}
+
+
+def test_meshes_and_their_nodes(tmp_path):
+    path = tmp_path / "meshed.json"
+    path.write_text(json.dumps(MESHED))
+    scene, _ = load_scene(path)
+    mesh = np.asarray(scene.model.mesh)
+    assert mesh[0] == -1 and (mesh[1:3] == 0).all() and (mesh[3:] == 1).all()
+    assert np.asarray(scene.model.fixed).tolist()[:3] == [True, False, False]
+    # the load at node 2 acts on an element holding it, at the node
+    body = int(scene.model.load_body[0])
+    np.testing.assert_allclose(np.asarray(scene.state.origin)[body] + np.asarray(scene.model.load_point)[0], [1, 1])
+    b = int(scene.model.connector_b[0])
+    np.testing.assert_allclose(np.asarray(scene.state.origin)[b] + np.asarray(scene.model.connector_pb)[0], [0, 1])
+    assert "element 0 of mesh 1" in " ".join(scene.labels)
+
+
+@pytest.mark.parametrize("edit, expected", [
+    (lambda d: d["meshes"][0].update(nodez=1), "mesh 0: unknown field 'nodez'"),
+    (lambda d: d["meshes"][0].pop("young"), "mesh 0: missing field 'young'"),
+    (lambda d: d["meshes"][0].pop("triangles"), "mesh 0: fields 'nodes' and 'triangles' go together"),
+    (lambda d: d["meshes"][1].update(nodes=[[0, 0]]), "mesh 1: give either 'nodes' and 'triangles' or"),
+    (lambda d: d["meshes"][0].update(triangles=[[0, 2, 1], [0, 2, 3]]), "mesh 0: triangle 0 [0, 2, 1] is inverted"),
+    (lambda d: d["meshes"][0].update(fixed="yes"), "mesh 0: field 'fixed' must be true or false"),
+    (lambda d: d["meshes"][0].update(density="1"), "mesh 0: field 'density' must be a number"),
+    (lambda d: d["loads"][0].update(body={"mesh": 4, "node": 0}), "load 0: field 'body' names mesh 4"),
+    (lambda d: d["loads"][0].update(body={"mesh": 0, "node": 9}), "load 0: field 'body' names node 9"),
+    (lambda d: d["loads"][0].update(body={"mesh": 0}), "load 0: field 'body': missing field 'node'"),
+    (lambda d: d["connectors"][0].update(body_b={"mesh": 0, "nod": 1}), "connector 0 (spring): field 'body_b': unknown"),
+])
+def test_mesh_errors_name_where(edit, expected):
+    data = copy.deepcopy(MESHED)
+    edit(data)
+    with pytest.raises(SceneError) as err:
+        scene_from_dict(data)
+    assert expected in str(err.value)
+
+
 def test_defaults_and_name_from_file(tmp_path):
     path = tmp_path / "tiny.json"
     path.write_text(json.dumps({"dt": 0.01, "bodies": [{"type": "disk", "center": [0, 0], "radius": 1,

@@ -15,7 +15,8 @@ from typing import Any
 from jaxdda.errors import SceneError
 from jaxdda.scene.builder import CONTACT_LAW, Scene, SceneBuilder
 
-TOP_KEYS = ("name", "dt", "gravity", "steps", "solver", "materials", "interfaces", "bodies", "loads", "connectors")
+TOP_KEYS = ("name", "dt", "gravity", "steps", "solver", "materials", "interfaces", "bodies", "meshes", "loads",
+            "connectors")
 SOLVER_KEYS = ("tol", "max_iter", "margin", "dynamic")
 MATERIAL_KEYS = tuple(CONTACT_LAW)
 INTERFACE_KEYS = ("materials",) + MATERIAL_KEYS
@@ -36,6 +37,10 @@ CONNECTOR_TYPES = {
     "beam": ("add_beam", ("young", "area", "inertia"), ("shear_modulus", "section")),
 }
 BOOLEAN_FIELDS = ("fixed", "gravity")  # bool("false") is True: insist on JSON true/false
+# A meshed block: given "nodes" and "triangles", or a polygon's "vertices" for the built-in mesher.
+MESH_REQUIRED = ("density", "young")
+MESH_OPTIONAL = ("nodes", "triangles", "vertices", "max_edge", "poisson", "plane", "fixed_nodes", "velocity",
+                 "angular_velocity", "fixed", "material", "gravity", "stress")
 
 
 def load_scene(path) -> tuple[Scene, int | None]:
@@ -107,22 +112,65 @@ def _build(data: Any) -> tuple[Scene, int | None]:
     for i, body in enumerate(bodies):
         _add_body(sb, i, body)
 
+    meshes = data.get("meshes", [])
+    _expect(meshes, list, "field 'meshes'", "a list")
+    added = [_add_mesh(sb, m, mesh) for m, mesh in enumerate(meshes)]
+
     loads = data.get("loads", [])
     _expect(loads, list, "field 'loads'", "a list")
     for k, load in enumerate(loads):
         where = f"load {k}"
         _expect(load, dict, where, "an object")
         _check_keys(where, load, LOAD_KEYS, ("body", "force"))
+        load = dict(load)
+        load["body"], load["at"] = _end(where, "body", load["body"], load.get("at"), added)
         _call(where, sb.add_load, **load)
 
     connectors = data.get("connectors", [])
     _expect(connectors, list, "field 'connectors'", "a list")
     for k, conn in enumerate(connectors):
-        _add_connector(sb, k, conn)
+        _add_connector(sb, k, conn, added)
     return _call("scene", sb.build), steps
 
 
-def _add_connector(sb: SceneBuilder, k: int, conn: Any) -> None:
+def _add_mesh(sb: SceneBuilder, m: int, mesh: Any):
+    where = f"mesh {m}"
+    _expect(mesh, dict, where, "an object")
+    _check_keys(where, mesh, MESH_REQUIRED + MESH_OPTIONAL, MESH_REQUIRED)
+    given = [k for k in ("nodes", "vertices") if k in mesh]
+    if len(given) != 1:
+        raise SceneError(f"{where}: give either 'nodes' and 'triangles' or a polygon's 'vertices'")
+    if ("triangles" in mesh) != ("nodes" in mesh):
+        raise SceneError(f"{where}: fields 'nodes' and 'triangles' go together")
+    if "max_edge" in mesh and "vertices" not in mesh:
+        raise SceneError(f"{where}: field 'max_edge' is for the built-in mesher (with 'vertices')")
+    _check_numbers(where, {k: v for k, v in mesh.items() if k in ("density", "young", "poisson", "max_edge",
+                                                                 "angular_velocity")}, allow_null=("max_edge",))
+    for field in BOOLEAN_FIELDS:
+        if field in mesh:
+            _expect(mesh[field], bool, f"{where}: field '{field}'", "true or false")
+    options = {k: v for k, v in mesh.items() if k not in ("nodes", "triangles", "vertices", "max_edge")}
+    if "vertices" in mesh:
+        return _call(where, sb.add_meshed_polygon, mesh["vertices"], max_edge=mesh.get("max_edge"), **options)
+    return _call(where, sb.add_mesh, mesh["nodes"], mesh["triangles"], **options)
+
+
+def _end(where: str, field: str, body: Any, at: Any, meshes: list):
+    """A body index, or {"mesh": m, "node": k}: the element holding that node, with ``at``
+    defaulting to the node's position."""
+    if not isinstance(body, dict):
+        return body, at
+    _check_keys(f"{where}: field '{field}'", body, ("mesh", "node"), ("mesh", "node"))
+    m, k = body["mesh"], body["node"]
+    if isinstance(m, bool) or not isinstance(m, int) or not 0 <= m < len(meshes):
+        raise SceneError(f"{where}: field '{field}' names mesh {m!r}, not one of the {len(meshes)} in 'meshes'")
+    mesh = meshes[m]
+    if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k < len(mesh.nodes):
+        raise SceneError(f"{where}: field '{field}' names node {k!r}, not one of mesh {m}'s {len(mesh.nodes)}")
+    return int(mesh.holder[k]), (mesh.nodes[k].tolist() if at is None else at)
+
+
+def _add_connector(sb: SceneBuilder, k: int, conn: Any, meshes: list) -> None:
     _expect(conn, dict, f"connector {k}", "an object")
     kind = conn.get("type")
     if not isinstance(kind, str) or kind not in CONNECTOR_TYPES:
@@ -130,9 +178,15 @@ def _add_connector(sb: SceneBuilder, k: int, conn: Any) -> None:
                          f"{'type' if kind is None else repr(kind)} (known: {', '.join(CONNECTOR_TYPES)})")
     method, required, optional = CONNECTOR_TYPES[kind]
     where = f"connector {k} ({kind})"
-    _check_keys(where, conn, ("type",) + CONNECTOR_ENDS + required + optional, CONNECTOR_ENDS + required)
+    _check_keys(where, conn, ("type",) + CONNECTOR_ENDS + required + optional, ("body_a", "body_b") + required)
     _check_numbers(where, {f: v for f, v in conn.items() if f in required + optional and f != "section"},
                    allow_null=("rest_length", "shear_modulus"))
+    conn = dict(conn)
+    for side in ("a", "b"):
+        conn[f"body_{side}"], conn[f"at_{side}"] = _end(where, f"body_{side}", conn[f"body_{side}"],
+                                                      conn.get(f"at_{side}"), meshes)
+        if conn[f"at_{side}"] is None:
+            raise SceneError(f"{where}: missing field 'at_{side}'")
     _call(where, getattr(sb, method), **{f: v for f, v in conn.items() if f != "type"})
 
 
