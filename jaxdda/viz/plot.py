@@ -21,13 +21,19 @@ def _import_matplotlib():
 
 
 def body_colors(model) -> list[str]:
-    """One color per body: grey when fixed, else matplotlib's color cycle."""
+    """One color per body: grey when fixed, else matplotlib's color cycle; the elements of
+    a meshed block share the color of its first element."""
     cycle = [f"C{k}" for k in range(10)]
-    return [FIXED_COLOR if f else cycle[i % len(cycle)] for i, f in enumerate(np.asarray(model.fixed, bool))]
+    mesh = np.asarray(model.mesh)
+    first = {m: i for i, m in reversed(list(enumerate(mesh.tolist()))) if m >= 0}
+    return [FIXED_COLOR if f else cycle[(first[mesh[i]] if mesh[i] >= 0 else i) % len(cycle)]
+            for i, f in enumerate(np.asarray(model.fixed, bool))]
 
 
-def body_shapes(patches, model, centroid: np.ndarray, rotation: np.ndarray):
-    """(patches, radius lines) of every body at the pose (centroid (N, 2), rotation (N,))."""
+def body_shapes(patches, model, centroid: np.ndarray, rotation: np.ndarray, vertices: np.ndarray | None = None):
+    """(patches, radius lines) of every body at the pose (centroid (N, 2), rotation (N,));
+    polygons at ``vertices`` (N, V, 2, world frame) when given (a deformed shape), else
+    placed rigidly."""
     kind, radius = np.asarray(model.kind), np.asarray(model.radius, float)
     inner, local = np.asarray(model.inner_radius, float), np.asarray(model.local_vertices, float)
     mask = np.asarray(model.vertex_mask, bool)
@@ -41,6 +47,8 @@ def body_shapes(patches, model, centroid: np.ndarray, rotation: np.ndarray):
         elif k == RING:
             out.append(patches.Wedge(c, radius[i], 0.0, 360.0, width=radius[i] - inner[i]))
             marks.append([c + inner[i] * direction, c + radius[i] * direction])
+        elif vertices is not None:
+            out.append(patches.Polygon(vertices[i][mask[i]], closed=True))
         else:
             out.append(patches.Polygon(c + local[i][mask[i]] @ _rotation(th).T, closed=True))
     return out, marks
@@ -89,8 +97,10 @@ def plot_trajectory(traj, path=None, *, ax=None, title=None):
     centroid, rotation = np.asarray(traj.centroid, float), np.asarray(traj.rotation, float)
     colors = body_colors(model)
 
+    verts = None if traj.stretch is None else traj.vertices()
+
     def shapes(frame: int):
-        return body_shapes(patches, model, centroid[frame], rotation[frame])
+        return body_shapes(patches, model, centroid[frame], rotation[frame], None if verts is None else verts[frame])
 
     first, first_marks = shapes(0)
     ax.add_collection(collections.PatchCollection(
@@ -104,7 +114,7 @@ def plot_trajectory(traj, path=None, *, ax=None, title=None):
                                                      linestyles="--", alpha=0.7))
         ax.add_collection(collections.LineCollection(last_marks, colors=round_colors, linewidths=1.5))
 
-    free = np.flatnonzero(~fixed)
+    free = np.flatnonzero(~fixed & (np.asarray(model.mesh) < 0))  # paths of bodies, not of mesh elements
     if len(centroid) > 1 and len(free):
         ax.add_collection(collections.LineCollection(
             [centroid[:, i] for i in free], colors=[colors[i] for i in free], linewidths=1.0))
