@@ -168,6 +168,35 @@ def test_meshed_block_carrying_a_block_slides_down_an_incline():
     assert run.info.converged.all()
 
 
+def test_gradient_through_a_meshed_block_is_the_closed_form():
+    """Reverse mode through a static run of a one-cell column (two elements, top nodes
+    loaded by F / 2 each): the top displacement is F H / (E W), so d/dE = -F H / (E^2 W);
+    element 0 holds the two fixed base nodes and one top node, so its centroid moves by a
+    third of that."""
+    import dataclasses
+
+    import jax
+    import jax.numpy as jnp
+
+    W, H, F = 1.0, 2.0, -1e3
+    sb = jaxdda.SceneBuilder(dt=0.1, gravity=(0.0, 0.0), dynamic=0.0)
+    nodes, tris = rectangle_mesh(0.0, 0.0, W, H, 1, 1)
+    mesh = sb.add_mesh(nodes, tris, 1.0, E, 0.0, fixed_nodes=[0, 1])
+    for k in (2, 3):
+        sb.add_load(int(mesh.holder[k]), (0.0, F / 2), at=nodes[k])
+    scene = sb.build()
+    assert sorted(tris[0].tolist())[:2] == [0, 1]
+
+    def centroid_drop(young):
+        params = dataclasses.replace(scene.params, young=jnp.full_like(scene.params.young, young))
+        end, _ = jaxdda.rollout(scene.model, scene.state, params, 4)
+        return end.displacement[0, 1]
+
+    value, grad = jax.value_and_grad(centroid_drop)(E)
+    np.testing.assert_allclose(value, F * H / (E * W) / 3, rtol=1e-9)
+    np.testing.assert_allclose(grad, -F * H / (E ** 2 * W) / 3, rtol=1e-9)
+
+
 def test_bad_meshes_name_the_triangle_or_node():
     nodes = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]
     cases = [
