@@ -40,6 +40,9 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--plot", metavar="FILE.png", help="save a picture of the run (needs matplotlib)")
     run.add_argument("--animate", metavar="FILE.gif", help="save an animation of the run (needs matplotlib)")
     run.add_argument("--frames", type=_positive_int, default=100, help="frames of the animation (default 100)")
+    run.add_argument("--vtk", metavar="DIR", help="save a ParaView time series (.pvd + .vtp) of bodies and contacts")
+    run.add_argument("--vtk-every", type=_positive_int, default=1, metavar="K",
+                     help="with --vtk: every K-th step (default 1; the last is always written)")
     run.add_argument("--chunk", type=_positive_int, default=2000,
                      help="steps per compiled chunk (default: 2000)")
     sub.add_parser("list", help="list the built-in examples")
@@ -96,6 +99,8 @@ def _run(args) -> int:
     _check_writable("--out", args.out)
     _check_writable("--plot", args.plot)
     _check_writable("--animate", args.animate)
+    if args.vtk is not None and Path(args.vtk).exists() and not Path(args.vtk).is_dir():
+        raise _UsageError(f"--vtk {args.vtk}: not a directory")
     if args.plot or args.animate:
         from jaxdda.viz.plot import _import_matplotlib
 
@@ -144,4 +149,9 @@ def _run(args) -> int:
 
         count = animate_trajectory(traj, args.animate, frames=args.frames)
         print(f"  wrote {args.animate} ({count} frames)")
+    if args.vtk:
+        from jaxdda.viz.vtk import write_vtk
+
+        for path in write_vtk(traj, args.vtk, every=args.vtk_every):
+            print(f"  wrote {path}")
     return 0

@@ -63,7 +63,8 @@ class Trajectory:
     def vertices(self) -> np.ndarray:
         """(S+1, bodies, V, 2): polygon vertices in the world frame at each step (padding
         entries and those of disks and rings are meaningless)."""
-        local = np.einsum("snij,nvj->snvi", self.stretch, np.asarray(self.scene.model.local_vertices))
+        stretch = np.broadcast_to(np.eye(2), self.rotation.shape + (2, 2)) if self.stretch is None else self.stretch
+        local = np.einsum("snij,nvj->snvi", stretch, np.asarray(self.scene.model.local_vertices))
         c, s = np.cos(self.rotation)[..., None], np.sin(self.rotation)[..., None]
         x, y = local[..., 0], local[..., 1]
         return self.centroid[:, :, None, :] + np.stack([c * x - s * y, s * x + c * y], -1)

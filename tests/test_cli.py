@@ -27,10 +27,14 @@ MIXED = {
 
 def test_run_example_writes_npz_and_png(tmp_path, capsys):
     out, png = tmp_path / "x.npz", tmp_path / "x.png"
-    assert main(["run", "paper-7.1", "--steps", "5", "--out", str(out), "--plot", str(png)]) == 0
+    vtk = tmp_path / "vtk"
+    assert main(["run", "paper-7.1", "--steps", "5", "--out", str(out), "--plot", str(png), "--vtk", str(vtk),
+                 "--vtk-every", "2"]) == 0
     text = capsys.readouterr().out
     assert "paper-7.1" in text and "5 steps" in text and "converged" in text
     assert png.stat().st_size > 1000
+    assert sorted(p.name for p in vtk.glob("*_bodies_*.vtp")) == [f"paper-7.1_bodies_{k:06d}.vtp" for k in (0, 2, 4, 5)]
+    assert (vtk / "paper-7.1_bodies.pvd").exists() and (vtk / "paper-7.1_contacts.pvd").exists()
     data = np.load(out)
     n, steps = 4, 5
     assert data["time"].shape == (steps + 1,)
