@@ -13,10 +13,9 @@ from jaxdda import groups
 from jaxdda.bodies.elastic import (current_shape, elastic_matrix, finite_rotation_shift, mesh_rotation,
                                    rotated_stress, stiffness, stress_load, updated_stretch)
 from jaxdda.bodies.mass import external_load, mass_matrix
-from jaxdda.bodies.shape import to_world
 from jaxdda.connectors import connector_forces, connector_terms
 from jaxdda.contact.adjoint import adjoint_partner
-from jaxdda.contact.detect import detect
+from jaxdda.contact.detect import detect, world_vertices
 from jaxdda.contact.keys import lookup
 from jaxdda.contact.kinematics import (apply_jacobian, apply_jacobian_t, clockwise, gap_change, gap_frame,
                                        jacobians)
@@ -109,7 +108,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
         coupling = (ends, conn_stiff)
     maps = None
     if model.group_members.shape[0]:  # each group member's dofs from the group's reduced ones
-        verts = to_world(centroid[:, None, :], state.rotation[:, None], model.local_vertices)
+        verts = world_vertices(model, centroid, state.rotation)
         maps = jnp.where((model.mesh >= 0)[:, None, None], groups.mesh_maps(verts), model.dof_basis)
     k_inv = groups.grouped(stiff + 2.0 * mass / dt ** 2, proj, model, maps, coupling)
     # Impacts see the step's flexibility: (M + K dt^2 / 2)^-1 = (2 / dt^2) K_eff^-1, which is
