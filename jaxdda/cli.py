@@ -40,6 +40,9 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--plot", metavar="FILE.png", help="save a picture of the run (needs matplotlib)")
     run.add_argument("--animate", metavar="FILE.gif", help="save an animation of the run (needs matplotlib)")
     run.add_argument("--frames", type=_positive_int, default=100, help="frames of the animation (default 100)")
+    run.add_argument("--save-every", type=_positive_int, default=1, metavar="K",
+                     help="keep every K-th step (and the last) in memory and outputs (default 1)")
+    run.add_argument("--quiet", action="store_true", help="no progress bar")
     run.add_argument("--vtk", metavar="DIR", help="save a ParaView time series (.pvd + .vtp) of bodies and contacts")
     run.add_argument("--vtk-every", type=_positive_int, default=1, metavar="K",
                      help="with --vtk: every K-th step (default 1; the last is always written)")
@@ -116,21 +119,22 @@ def _run(args) -> int:
     from jaxdda.simulate import simulate
 
     start = time.perf_counter()
-    traj = simulate(scene, steps, chunk=args.chunk)
+    traj = simulate(scene, steps, chunk=args.chunk, save_every=args.save_every, progress=False if args.quiet else None)
     wall = time.perf_counter() - start
     info = traj.info
-    converged = np.asarray(info.converged, bool)
+    converged = np.asarray(traj.step_converged, bool)  # every step run, saved or not
     print(f"{scene.name}: {scene.n_bodies} bodies, {steps} steps of dt = {float(scene.params.dt):g} s")
     print(f"  simulated time    {float(traj.time[-1]):.6g} s")
     print(f"  wall time         {wall:.2f} s (including compilation)")
-    print(f"  PC iterations     max {int(np.max(info.iterations))} per step")
+    of = "" if args.save_every == 1 else " (of the saved steps)"
+    print(f"  PC iterations     max {int(np.max(info.iterations))} per step{of}")
     if converged.all():
         print("  converged         every step")
     else:
         print(f"  converged         NO: {int((~converged).sum())} steps did not converge "
               f"(first: step {int(np.argmin(converged)) + 1})")
-    print(f"  contacts          max {int(np.max(info.n_contacts))}")
-    print(f"  penetration       max {float(np.max(info.max_penetration)):.3g}")
+    print(f"  contacts          max {int(np.max(info.n_contacts))}{of}")
+    print(f"  penetration       max {float(np.max(info.max_penetration)):.3g}{of}")
     if args.out:
         c = info.contacts
         np.savez_compressed(

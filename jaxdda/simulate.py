@@ -8,6 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxdda.errors import CapacityError
+from jaxdda.progress import Progress
 from jaxdda.scene.builder import Scene
 from jaxdda.step import step
 from jaxdda.types import Capacities, ContactReport, Model, Params, State, StepInfo
@@ -18,7 +19,7 @@ MAX_REGROW = 8
 @dataclasses.dataclass
 class Trajectory:
     """A simulated run of S steps, as numpy arrays. Index 0 is the initial state; step k
-    ends at index k.
+    ends at index k (with ``simulate(..., save_every=k)``: the step ``saved_steps[i]``).
 
     ``info`` holds one StepInfo entry per step (leading axis S); ``info.contacts`` the
     per-step contact report, padded to the largest contact capacity of the run (its
@@ -35,10 +36,13 @@ class Trajectory:
     info: StepInfo
     final_state: State
     stretch: np.ndarray | None = None  # (S+1, bodies, 2, 2): shape x = c + R(rotation) stretch X (I if rigid)
+    saved_steps: np.ndarray | None = None  # (S+1,) the step each index ends (0: the start); None: every step
+    step_converged: np.ndarray | None = None  # (steps,) whether each step run converged, saved or not
 
     @property
     def steps(self) -> int:
-        return len(self.time) - 1
+        """Steps run (with ``save_every``, more than were kept)."""
+        return len(self.time) - 1 if self.saved_steps is None else int(self.saved_steps[-1])
 
     @property
     def joint_tension(self) -> np.ndarray:
@@ -119,7 +123,8 @@ def with_capacity(model: Model, state: State, capacity: Capacities) -> tuple[Mod
     return dataclasses.replace(model, capacity=capacity), dataclasses.replace(state, contact_key=key, contact_force=force)
 
 
-def simulate(scene: Scene, steps: int, *, params: Params | None = None, chunk: int = 1000) -> Trajectory:
+def simulate(scene: Scene, steps: int, *, params: Params | None = None, chunk: int = 1000, save_every: int = 1,
+             progress: bool | None = None) -> Trajectory:
     """Run ``steps`` (>= 1) steps of ``scene`` and return the trajectory.
 
     Runs in jit-compiled chunks of ``chunk`` steps (one compilation per scene and chunk
@@ -127,15 +132,20 @@ def simulate(scene: Scene, steps: int, *, params: Params | None = None, chunk: i
     a buffer overflows in a chunk, its capacity is grown from the counts the step
     reported and the chunk is run again from its start, so no contact is ever lost.
     Raises CapacityError if that does not settle within a few regrowths.
+
+    ``save_every=k`` keeps the state and step diagnostics of every k-th step only (and
+    the last), so memory stays flat on long runs (``Trajectory.saved_steps`` numbers
+    them). ``progress`` shows a bar with steps per second and the chunk's largest
+    solver iteration count (None: when the run takes more than one chunk).
     """
-    if isinstance(steps, bool) or int(steps) != steps or steps < 1:
-        raise ValueError(f"steps must be a positive integer, got {steps!r}")
-    if isinstance(chunk, bool) or int(chunk) != chunk or chunk < 1:
-        raise ValueError(f"chunk must be a positive integer, got {chunk!r}")
+    for name, value in (("steps", steps), ("chunk", chunk), ("save_every", save_every)):
+        if isinstance(value, bool) or int(value) != value or value < 1:
+            raise ValueError(f"{name} must be a positive integer, got {value!r}")
     params = scene.params if params is None else params
     model, state = scene.model, scene.state
     length = int(chunk)
-    pieces, done = [], 0
+    pieces, saved, converged, done = [], [np.zeros(1, np.int64)], [], 0
+    bar = Progress(int(steps), "steps", steps > length if progress is None else bool(progress))
     while done < steps:
         n_valid = min(length, steps - done)
         for _ in range(MAX_REGROW):
@@ -148,10 +158,16 @@ def simulate(scene: Scene, steps: int, *, params: Params | None = None, chunk: i
         else:
             raise CapacityError(f"contact buffers kept overflowing after {MAX_REGROW} regrowths "
                                 f"(capacity {model.capacity})")
-        pieces.append(jax.tree.map(lambda x: np.asarray(x)[:n_valid], out))
+        number = done + 1 + np.arange(n_valid)
+        keep = np.flatnonzero((number % save_every == 0) | (number == steps))
+        pieces.append(jax.tree.map(lambda x: np.asarray(x)[keep], out))
+        saved.append(number[keep])
+        converged.append(np.asarray(info.converged)[:n_valid])
+        bar.update(n_valid, iterations=int(np.asarray(info.iterations)[:n_valid].max()))
         state, done = end, done + n_valid
-
-    return _assemble(scene, pieces, state)
+    bar.close()
+    return dataclasses.replace(_assemble(scene, pieces, state), saved_steps=np.concatenate(saved),
+                               step_converged=np.concatenate(converged))
 
 
 def _pad_contacts(report: ContactReport, width: int) -> ContactReport:

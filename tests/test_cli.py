@@ -51,6 +51,19 @@ def test_run_example_writes_npz_and_png(tmp_path, capsys):
     assert (data["contact_valid"].sum(1) == data["n_contacts"]).all()
 
 
+def test_save_every_keeps_every_kth_step_of_the_same_run(tmp_path, capsys):
+    full, sparse = tmp_path / "full.npz", tmp_path / "sparse.npz"
+    assert main(["run", "paper-7.1", "--steps", "5", "--out", str(full), "--quiet"]) == 0
+    assert main(["run", "paper-7.1", "--steps", "5", "--out", str(sparse), "--save-every", "2", "--quiet"]) == 0
+    text = capsys.readouterr().out
+    assert "(of the saved steps)" in text and "converged         every step" in text
+    a, b = np.load(full), np.load(sparse)
+    kept = [0, 2, 4, 5]  # every 2nd step and the last
+    np.testing.assert_array_equal(b["time"], a["time"][kept])
+    np.testing.assert_array_equal(b["centroid"], a["centroid"][kept])
+    np.testing.assert_array_equal(b["iterations"], a["iterations"][[1, 3, 4]])  # steps 2, 4, 5
+
+
 def test_run_scene_file(tmp_path, capsys):
     scene = tmp_path / "mixed.json"
     scene.write_text(json.dumps(MIXED))
