@@ -15,7 +15,7 @@ from jaxdda.bodies.elastic import (current_shape, elastic_matrix, finite_rotatio
 from jaxdda.bodies.mass import external_load, mass_matrix
 from jaxdda.connectors import connector_forces, connector_terms
 from jaxdda.contact.adjoint import adjoint_partner
-from jaxdda.contact.detect import detect, world_vertices
+from jaxdda.contact.detect import contact_materials, detect, world_vertices
 from jaxdda.contact.keys import lookup
 from jaxdda.contact.kinematics import (apply_jacobian, apply_jacobian_t, clockwise, gap_change, gap_frame,
                                        jacobians)
@@ -69,7 +69,7 @@ def _contact_sets(model: Model, state: State, params: Params, c: Contacts, norma
     """The constraint data of this step's contacts, and which are cemented joints (not
     broken). A joint's strength is t times its integrity; adjoint joints share the
     smaller of their two integrities (one budget per pair, as ``solver.sets`` needs)."""
-    mat_a, mat_b = model.material[c.a], model.material[c.b]
+    mat_a, mat_b = contact_materials(model, c)
     joint, is_joint = lookup(model.joint_key, c.key)
     integrity = jnp.where(c.valid & is_joint, state.joint_integrity[joint], 0.0)
     cemented = integrity > 0
@@ -132,7 +132,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
         return gap0 + gap_change(c, centroid, state.rotation, d[:, :2], d[:, 2], d[:, 3:])
 
     sets, cemented, joint = _contact_sets(model, state, params, c, normal)
-    restitution = params.restitution[model.material[c.a], model.material[c.b]]
+    restitution = params.restitution[contact_materials(model, c)]
 
     # Force scale of the scene this step: residuals far below it are round-off.
     momentum = jnp.max(jnp.abs(matvec(mass, vel)) + jnp.abs(load) * dt, initial=0.0)

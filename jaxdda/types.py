@@ -54,6 +54,7 @@ class Model:
     local_vertices: jax.Array  # (N, V, 2)
     vertex_mask: jax.Array  # (N, V) bool
     edge_mask: jax.Array  # (N, V) bool: edge v (vertex v to v + 1) is a contact surface (not inside a mesh)
+    edge_material: jax.Array  # (N, V) int32 material whose law governs contacts on edge v (-1: the bodies')
     n_vertices: jax.Array  # (N,) int32
     area: jax.Array  # (N,)
     polar_moment: jax.Array  # (N,) integral of r^2 dA about the centroid
@@ -160,6 +161,7 @@ class Contacts:
     qb: jax.Array  # (C, 2)
     eb: jax.Array  # (C, 2)
     key: jax.Array  # (C,) int64 identity of the feature pair, for warm start
+    edge: jax.Array  # (C,) int32 b's edge of a B_LINE contact (-1: none), for its joint material
 
 
 @pytree_dataclass

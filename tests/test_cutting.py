@@ -68,3 +68,37 @@ def test_bad_input_is_named():
         JointSet(dip=0.0, spacing=0.0).lines(RECT)
     with pytest.raises(SceneError, match="smaller than min_area"):
         cut_blocks(RECT, [[(-1, 0.01), (5, 0.01)]], min_area=0.1)
+
+
+def test_cut_blocks_slide_on_their_joint_with_its_friction():
+    """A rectangle cut by one joint into two blocks; the lower one fixed. The rock is
+    rough (mu = 0.9, it would hold at 30 degrees) but the joint is smooth (mu = 0.2):
+    the upper block slides along it as if both blocks were of the joint's material, at
+    g (sin a - mu_joint cos a). Gravity is tilted.
+
+    The closed form holds to 1.3e-6 here, for blocks of the joint's material as well: the
+    blocks start corner to corner, and that start (not the joint law) leaves this error,
+    which is not yet explained (noted on issue 8)."""
+    import jaxdda
+
+    g, angle = 9.81, np.radians(30.0)
+    blocks = cut_blocks([(0, 0), (4, 0), (4, 2), (0, 2)], [[(-1, 1), (5, 1)]])
+    sb = jaxdda.SceneBuilder(dt=0.01, gravity=(g * np.sin(angle), -g * np.cos(angle)))
+    sb.add_material("rock", friction=0.9, restitution=0.0)
+    sb.add_material("bedding", friction=0.2, restitution=0.0)
+    lower = [k for k, b in enumerate(blocks) if b.vertices[:, 1].min() == 0][0]
+    bodies = sb.add_blocks(blocks, 2500.0, joints={0: "bedding"}, fixed=[lower], material="rock")
+    scene = sb.build()
+    run = jaxdda.simulate(scene, 30)
+    plain = jaxdda.SceneBuilder(dt=0.01, gravity=(g * np.sin(angle), -g * np.cos(angle)))
+    plain.add_material("bedding", friction=0.2, restitution=0.0)
+    plain.add_blocks(blocks, 2500.0, fixed=[lower], material="bedding")
+    reference = jaxdda.simulate(plain.build(), 30)
+    np.testing.assert_allclose(run.centroid, reference.centroid, rtol=0, atol=1e-12)
+    upper = bodies[1 - lower]
+    slid = run.centroid[:, upper, 0] - run.centroid[0, upper, 0]
+    np.testing.assert_allclose(slid, 0.5 * g * (np.sin(angle) - 0.2 * np.cos(angle)) * run.time ** 2, rtol=2e-6)
+    np.testing.assert_allclose(run.centroid[:, upper, 1], run.centroid[0, upper, 1], atol=1e-9)
+    # the joint edges carry the joint's material, the boundary edges none
+    edge_material = np.asarray(scene.model.edge_material)
+    assert sorted(edge_material[upper][:4].tolist()) == [-1, -1, -1, scene.materials.index("bedding")]

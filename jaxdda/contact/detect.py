@@ -85,3 +85,12 @@ def detect(model: Model, centroid: jax.Array, rotation: jax.Array, reach: jax.Ar
     contacts = dataclasses.replace(contacts, valid=valid, key=jnp.where(valid, contacts.key, -1))
     needed = jnp.stack([need_candidates, need_pp, need_pb, need_bb, need_c]).astype(jnp.int32)
     return contacts, needed
+
+
+def contact_materials(model: Model, c) -> tuple[jax.Array, jax.Array]:
+    """The material pair (C,), (C,) whose contact law a contact uses: a joint material
+    on b's edge (``Model.edge_material``, e.g. the joint set that cut two blocks apart)
+    governs both sides; otherwise the two bodies' materials."""
+    joint = jnp.where(c.edge >= 0, model.edge_material[c.b, jnp.maximum(c.edge, 0)], -1)
+    return jnp.where(joint >= 0, joint, model.material[c.a]), jnp.where(joint >= 0, joint, model.material[c.b])
+

@@ -46,7 +46,7 @@ def _take1(x: jax.Array, index: jax.Array) -> jax.Array:
     return jnp.take_along_axis(x, index, axis=1)
 
 
-def _record(a, b, ra, pa, btype, rb, qb, eb, key) -> Contacts:
+def _record(a, b, ra, pa, btype, rb, qb, eb, key, edge=-1) -> Contacts:
     shape = jnp.broadcast_shapes(*(jnp.shape(x) for x in (a, b, ra, btype, rb, key)),
                                  *(jnp.shape(x)[:-1] for x in (pa, qb, eb)))
     bc = lambda x: jnp.broadcast_to(x, shape)
@@ -54,7 +54,7 @@ def _record(a, b, ra, pa, btype, rb, qb, eb, key) -> Contacts:
     return Contacts(
         valid=jnp.zeros(shape, bool), a=bc(a).astype(jnp.int32), b=bc(b).astype(jnp.int32),
         ra=bc(ra), pa=bc2(pa), btype=bc(btype).astype(jnp.int32), rb=bc(rb), qb=bc2(qb),
-        eb=bc2(eb), key=bc(key).astype(jnp.int64))
+        eb=bc2(eb), key=bc(key).astype(jnp.int64), edge=bc(edge).astype(jnp.int32))
 
 
 def particle_particle(model: Model, centroid: jax.Array, i: jax.Array, j: jax.Array):
@@ -94,7 +94,7 @@ def particle_polygon(model: Model, centroid: jax.Array, verts: jax.Array, p: jax
     edge_ok = mask & ~inside_ring & (t >= 0) & (t <= 1) & (s >= 0)
     local = model.local_vertices[q]
     edge = _record(p[:, None], q[:, None], radius, jnp.zeros(2), B_LINE, 0.0, local, _take(local, nxt),
-                   jnp.arange(v_max)[None, :])
+                   jnp.arange(v_max)[None, :], jnp.arange(v_max)[None, :])
 
     # Vertices: PB III (a convex corner touched from outside, centre in its normal cone)
     # or PB IV (a vertex inside a ring's hole).
@@ -198,9 +198,10 @@ def polygon_polygon(model: Model, verts: jax.Array, i: jax.Array, j: jax.Array, 
     la, lb = model.local_vertices[i], model.local_vertices[j]
     vi = jnp.arange(v_max)
     rec_ab = _record(i[:, None, None], j[:, None, None], 0.0, la[:, :, None, :], B_LINE, 0.0,
-                     lb[:, None, :, :], _take(lb, nb)[:, None, :, :], vi[:, None] * v_max + vi[None, :])
+                     lb[:, None, :, :], _take(lb, nb)[:, None, :, :], vi[:, None] * v_max + vi[None, :], vi[None, :])
     rec_ba = _record(j[:, None, None], i[:, None, None], 0.0, lb[:, :, None, :], B_LINE, 0.0,
-                     la[:, None, :, :], _take(la, na)[:, None, :, :], v_max * v_max + vi[:, None] * v_max + vi[None, :])
+                     la[:, None, :, :], _take(la, na)[:, None, :, :], v_max * v_max + vi[:, None] * v_max + vi[None, :],
+                     vi[None, :])
     flat = lambda x: x.reshape((x.shape[0], v_max * v_max) + x.shape[3:])
     records = jax.tree.map(lambda x, y: jnp.concatenate([flat(x), flat(y)], 1), rec_ab, rec_ba)
     return records, jnp.concatenate([flat(ok_ab), flat(ok_ba)], 1)

@@ -78,6 +78,7 @@ class _Body:
     edges: np.ndarray = None  # an element's edges that lie on its mesh's boundary (contact surfaces)
     element: int = -1  # its index among the mesh's triangles
     pinned: np.ndarray = None  # which of an element's nodes are fixed
+    edge_materials: list | None = None  # per edge (counter-clockwise order): a joint material or None
 
 
 class SceneBuilder:
@@ -233,12 +234,15 @@ class SceneBuilder:
                          density, velocity, angular_velocity, (young, poisson, plane, stress))
 
     def add_polygon(self, vertices, density, velocity=(0.0, 0.0), angular_velocity=0.0, fixed=False,
-                    material="default", gravity=True, young=None, poisson=0.0, plane="stress", stress=None) -> int:
+                    material="default", gravity=True, young=None, poisson=0.0, plane="stress", stress=None,
+                    edge_materials=None) -> int:
         """A simple polygon (convex or concave, either orientation; rigid: eq. 3, deformable:
         6 dofs, eqs. 6-7). ``velocity`` is that of its centroid. Returns its body index.
         Deformable with ``young`` (E > 0, Pa) and ``poisson`` (-1 < nu < 0.5), in
         ``plane`` "stress" (default) or "strain", with an initial ``stress`` (sigma_x, sigma_y,
-        tau_xy) (eq. A.11, default 0); rigid when ``young`` is None.
+        tau_xy) (eq. A.11, default 0); rigid when ``young`` is None. ``edge_materials``: per
+        edge (vertex k to k + 1, in the order given) a material whose contact law governs
+        contacts on that edge (a joint's properties), or None for the bodies' own.
         """
         label = self._label(POLYGON)
         try:
@@ -251,13 +255,37 @@ class SceneBuilder:
         problem = geometry.simple_polygon_problem(verts)
         if problem is not None:
             raise SceneError(f"{label}: field 'vertices' is not a valid polygon: {problem}")
-        verts = geometry.counter_clockwise(verts)
+        if edge_materials is not None:
+            edge_materials = list(edge_materials)
+            if len(edge_materials) != len(verts):
+                raise SceneError(f"{label}: field 'edge_materials' needs one entry per edge ({len(verts)}), "
+                                 f"got {len(edge_materials)}")
+            for k, m in enumerate(edge_materials):
+                if m is not None and m not in self._materials:
+                    raise SceneError(f"{label}: field 'edge_materials' names unknown material {m!r} for edge {k}")
+        ccw = geometry.counter_clockwise(verts)
+        if edge_materials is not None and not np.array_equal(ccw, verts):  # reversed: edge k runs k+1 -> k
+            edge_materials = [edge_materials[(len(verts) - 2 - j) % len(verts)] for j in range(len(verts))]
+        verts = ccw
         area, centroid, polar = geometry.polygon_properties(verts)
         local = verts - centroid
         return self._add(_Body(POLYGON, np.asarray(centroid, float), 0.0, 0.0, local, float(area),
                                float(polar), 0.0, np.zeros(2), 0.0, fixed, material, gravity,
-                               geometry.polygon_second_moments(local)),
+                               geometry.polygon_second_moments(local), edge_materials=edge_materials),
                          density, velocity, angular_velocity, (young, poisson, plane, stress))
+
+    def add_blocks(self, blocks, density, *, joints=None, fixed=(), **kwargs) -> list[int]:
+        """Blocks from ``scene.cutting.cut_blocks``: each a polygon whose edges cut by joint
+        line k take the contact law of material ``joints[k]`` (a dict, or one name for every
+        joint; boundary edges and lines not named keep the bodies' law). ``fixed``: indices
+        into ``blocks`` of fixed blocks. Other keywords go to ``add_polygon``."""
+        fixed = set(int(k) for k in fixed)
+        out = []
+        for k, block in enumerate(blocks):
+            names = [None if line < 0 else (joints if isinstance(joints, str) else (joints or {}).get(int(line)))
+                     for line in block.edge_lines]
+            out.append(self.add_polygon(block.vertices, density, fixed=k in fixed, edge_materials=names, **kwargs))
+        return out
 
     # -- meshed blocks (paper section 6.1) ----------------------------------------------
     def add_mesh(self, nodes, triangles, density, young, poisson=0.0, *, plane="stress", fixed_nodes=(),
@@ -359,10 +387,13 @@ class SceneBuilder:
         local = np.zeros((n, v_max, 2))
         mask = np.zeros((n, v_max), bool)
         edges = np.zeros((n, v_max), bool)
+        edge_material = -np.ones((n, v_max), np.int32)
         for i, b in enumerate(self._bodies):
             local[i, : len(b.local)] = b.local
             mask[i, : len(b.local)] = True
             edges[i, : len(b.local)] = True if b.edges is None else b.edges
+            for k, m in enumerate(b.edge_materials or []):
+                edge_material[i, k] = -1 if m is None else names.index(m)
         kinds = np.array([b.kind for b in self._bodies], np.int32)
         bound = np.array([b.radius if b.kind != POLYGON else np.max(np.linalg.norm(b.local, axis=1))
                           for b in self._bodies])
@@ -377,6 +408,7 @@ class SceneBuilder:
             radius=jnp.asarray([b.radius for b in self._bodies], float),
             inner_radius=jnp.asarray([b.inner_radius for b in self._bodies], float),
             local_vertices=jnp.asarray(local), vertex_mask=jnp.asarray(mask), edge_mask=jnp.asarray(edges),
+            edge_material=jnp.asarray(edge_material),
             n_vertices=jnp.asarray(mask.sum(1).astype(np.int32)),
             area=jnp.asarray([b.area for b in self._bodies]), polar_moment=jnp.asarray([b.polar for b in self._bodies]),
             bound_radius=jnp.asarray(bound),

@@ -7,7 +7,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxdda.contact.detect import detect
+from jaxdda.contact.detect import contact_materials, detect
 from jaxdda.contact.kinematics import gap_frame
 from jaxdda.errors import CapacityError
 from jaxdda.types import Model, Params, State
@@ -28,8 +28,7 @@ def with_joints(model: Model, state: State, params: Params, tol: float) -> tuple
     if np.any(np.asarray(needed) > np.asarray(dataclasses.astuple(model.capacity))):
         raise CapacityError(f"initial contact detection overflowed (needed {np.asarray(needed).tolist()}, "
                             f"capacity {model.capacity})")
-    tensile = np.asarray(params.tensile)[np.asarray(model.material)[np.asarray(c.a)],
-                                         np.asarray(model.material)[np.asarray(c.b)]]
+    tensile = np.asarray(params.tensile[contact_materials(model, c)])
     sel = np.asarray(c.valid) & (np.abs(np.asarray(gap)) <= tol) & (tensile > 0)
     if not sel.any():
         return model, state

@@ -76,6 +76,7 @@ def pad_scene(scene: Scene, shape: Shape) -> tuple[Model, State, Params]:
         inner_radius=bodies(m.inner_radius, 0.0), local_vertices=bodies(verts, 0.0),
         vertex_mask=bodies(_pad(np.asarray(m.vertex_mask), shape.vertices, False, axis=1), False),
         edge_mask=bodies(_pad(np.asarray(m.edge_mask), shape.vertices, False, axis=1), False),
+        edge_material=bodies(_pad(np.asarray(m.edge_material), shape.vertices, -1, axis=1), -1),
         n_vertices=bodies(m.n_vertices, 0), area=bodies(m.area, np.pi * size ** 2),
         polar_moment=bodies(m.polar_moment, 0.5 * np.pi * size ** 4),
         second_moment=bodies(m.second_moment, 0.0), plane_strain=bodies(m.plane_strain, False),
