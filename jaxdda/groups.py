@@ -9,6 +9,8 @@ where ``q_slot`` are the (up to 6) reduced dofs listed in its slot of ``group_do
 * a 3-node triangle of a meshed block (eqs. 93-105) maps its three nodes' displacements
   to its affine dofs (``mesh_maps``): elements sharing a node share its dofs, so the
   group's K_eff is the assembled finite element matrix sum A^T K_e A.
+* a body with fixed points (``pins.py``) maps the null space of its pins' constraints,
+  rebuilt each step from its lever, so its pins never move.
 
 ``Flexibility`` applies K_eff^-1 to per-body dof vectors, so contacts, loads and
 integration stay per body and W = J K_eff^-1 J^T is never formed (eqs. 105, 112).

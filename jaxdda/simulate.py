@@ -38,6 +38,7 @@ class Trajectory:
     stretch: np.ndarray | None = None  # (S+1, bodies, 2, 2): shape x = c + R(rotation) stretch X (I if rigid)
     saved_steps: np.ndarray | None = None  # (S+1,) the step each index ends (0: the start); None: every step
     step_converged: np.ndarray | None = None  # (steps,) whether each step run converged, saved or not
+    params: Params | None = None  # the parameters of the run (default: the scene's)
 
     @property
     def steps(self) -> int:
@@ -72,6 +73,35 @@ class Trajectory:
         c, s = np.cos(self.rotation)[..., None], np.sin(self.rotation)[..., None]
         x, y = local[..., 0], local[..., 1]
         return self.centroid[:, :, None, :] + np.stack([c * x - s * y, s * x + c * y], -1)
+
+    def material_points(self, body, local) -> np.ndarray:
+        """(S+1, P, 2): world paths of material points given per point by ``body`` (P,)
+        and ``local`` (P, 2), each body-local at rotation 0 (x = c + R(rotation) S X)."""
+        body, local = np.asarray(body, np.int64).reshape(-1), np.asarray(local, float).reshape(-1, 2)
+        stretch = np.broadcast_to(np.eye(2), self.rotation.shape + (2, 2)) if self.stretch is None else self.stretch
+        x = np.einsum("spij,pj->spi", stretch[:, body], local)
+        c, s = np.cos(self.rotation[:, body]), np.sin(self.rotation[:, body])
+        return self.centroid[:, body] + np.stack([c * x[..., 0] - s * x[..., 1], s * x[..., 0] + c * x[..., 1]], -1)
+
+    def measured_points(self) -> np.ndarray:
+        """(S+1, P, 2): the paths of the scene's measured points (``add_measured_point``)."""
+        return self.material_points([b for b, _ in self.scene.measured], [x for _, x in self.scene.measured])
+
+    def load_points(self) -> np.ndarray:
+        """(S+1, L, 2): where each point load acts at each saved step."""
+        return self.material_points(self.scene.model.load_body, self.scene.model.load_point)
+
+    def load_forces(self) -> np.ndarray:
+        """(S+1, L, 2): each point load's force F(t) = force + rate t + history(t) at each
+        saved time (the step ending at t applies F(t))."""
+        p, m = self.params or self.scene.params, self.scene.model
+        t = self.time[:, None, None]
+        times, history = np.asarray(m.load_times), np.asarray(p.load_history)
+        h = np.zeros((len(self.time), len(times), 2))
+        for k in range(len(times)):  # host-side, per load
+            for i in range(2):
+                h[:, k, i] = np.interp(self.time, times[k], history[k, :, i])
+        return np.asarray(p.load_force)[None] + np.asarray(p.load_rate)[None] * t + h
 
     def mesh_nodes(self, mesh) -> np.ndarray:
         """(S+1, nodes, 2): the node positions of a meshed block (the ``Mesh`` that
@@ -167,7 +197,7 @@ def simulate(scene: Scene, steps: int, *, params: Params | None = None, chunk: i
         state, done = end, done + n_valid
     bar.close()
     return dataclasses.replace(_assemble(scene, pieces, state), saved_steps=np.concatenate(saved),
-                               step_converged=np.concatenate(converged))
+                               step_converged=np.concatenate(converged), params=params)
 
 
 def _pad_contacts(report: ContactReport, width: int) -> ContactReport:

@@ -68,6 +68,7 @@ class Model:
     mesh: jax.Array  # (N,) int32 the meshed block a triangle element belongs to (-1: not an element)
     load_body: jax.Array  # (L,) int32 body of each point load
     load_point: jax.Array  # (L, 2) its point of application, body-local (moves with the body)
+    load_times: jax.Array  # (L, K) knot times of each load's history (non-decreasing; padding repeats the last)
     joint_key: jax.Array  # (J,) int64 contact key of each cemented joint found at t = 0 (-2: padding)
     joint_a: jax.Array  # (J,) int32 the joint's two bodies (for reports)
     joint_b: jax.Array  # (J,) int32
@@ -79,6 +80,9 @@ class Model:
     connector_pb: jax.Array  # (K, 2) attachment point on body b, body-local
     connector_length: jax.Array  # (K,) rest length l0
     connector_chord0: jax.Array  # (K, 2) unit direction from a's to b's attachment point at t = 0
+    pin_body: jax.Array  # (P,) int32 body of each fixed point that constrains a movable body (pins.py)
+    pin_point: jax.Array  # (P, 2) its world position (it never moves)
+    pin_role: jax.Array  # (P,) int32 0: the centre the body turns about, 1: a second pin, -1: inert (padding)
     group_members: jax.Array  # (G, S) int32 bodies of each dof group (meshed or tied by connectors; -1: empty)
     group_dofs: jax.Array  # (G, S, 6) int32 the group's reduced dofs behind each member's 6 (-1: none; groups.py)
     group_free: jax.Array  # (G, R) bool: a reduced dof that exists and is not fixed
@@ -104,7 +108,8 @@ class Params:
     rolling: jax.Array  # (M, M) rolling resistance coefficient delta, a length (eq. 55)
     tensile: jax.Array  # (M, M) tensile strength t of a cemented interface, a force shared by its joints (eq. 70)
     load_force: jax.Array  # (L, 2) point load at t = 0 (world frame)
-    load_rate: jax.Array  # (L, 2) its rate of change: F(t) = load_force + load_rate * t
+    load_rate: jax.Array  # (L, 2) its rate of change: F(t) = load_force + load_rate * t + history(t)
+    load_history: jax.Array  # (L, K, 2) force at each knot time, linear in between, held outside
     dynamic: jax.Array  # () share of the velocity carried into the next step: 1 dynamic, 0 static (Shi's k01)
     tol: jax.Array  # () relative tolerance of the contact solve
     max_iter: jax.Array  # () iteration cap of the contact solve (a float, so grad ignores it)

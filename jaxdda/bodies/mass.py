@@ -55,13 +55,15 @@ def inverse_on_subspace(a: jax.Array, projector: jax.Array) -> jax.Array:
 def external_load(model: Model, params: Params, centroid: jax.Array, rotation: jax.Array,
                   time: jax.Array) -> jax.Array:
     """Generalised external load per body (N, 6) at ``time``: the body force (gravity) on
-    u0, v0, plus each point load F(t) = F0 + rate t as T(x)^T F at its material point x
-    in the given configuration (eqs. 2, 7, 13)."""
+    u0, v0, plus each point load F(t) = F0 + rate t + h(t) as T(x)^T F at its material
+    point x in the given configuration (eqs. 2, 7, 13); h interpolates the load's time
+    history linearly and holds its end values outside it."""
     m = params.density * model.area * model.gravity_scale
     load = jnp.zeros((model.n_bodies, NDOF))
     load = load.at[:, 0].set(m * params.gravity[0]).at[:, 1].set(m * params.gravity[1])
     body = model.load_body
     x = to_world(centroid[body], rotation[body], model.load_point)
-    force = params.load_force + params.load_rate * time
+    history = jax.vmap(jax.vmap(jnp.interp, (None, None, 1)), (None, 0, 0))(time, model.load_times, params.load_history)
+    force = params.load_force + params.load_rate * time + history
     generalised = jnp.einsum("lij,li->lj", shape_function(x, centroid[body]), force)
     return load + jax.ops.segment_sum(generalised, body, model.n_bodies)

@@ -1,7 +1,10 @@
 """SceneBuilder: bodies and materials in, a validated (Model, State, Params) out."""
 from __future__ import annotations
 
+import copy
 import dataclasses
+import functools
+import inspect
 from typing import Sequence
 
 import jax.numpy as jnp
@@ -13,7 +16,7 @@ from jaxdda.errors import SceneError
 from jaxdda.scene import cement, validate
 from jaxdda.scene import mesh as mesh_lib
 from jaxdda.scene.capacity import initial_capacities
-from jaxdda.types import (DISK, KIND_NAMES, NDOF, NO_JOINT, POLYGON, RING, Model, Params, State,
+from jaxdda.types import (DISK, KIND_NAMES, NDOF, NO_JOINT, POLYGON, RING, Capacities, Model, Params, State,
                           zeros_contact_memory)
 
 RIGID_PROJECTOR = np.diag([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
@@ -33,6 +36,12 @@ class Scene:
     labels: tuple[str, ...]  # "body 3 (disk)" etc., used in messages and plots
     materials: tuple[str, ...]
     name: str = "scene"
+    # How it was built: the builder's settings and its recorded calls (scene.io writes them
+    # out as a scene file that reads back to this scene).
+    recipe: tuple = dataclasses.field(default=(), repr=False, compare=False)
+    # Measured points: (body, point) with the point body-local at rotation 0 (see
+    # Trajectory.measured_points).
+    measured: tuple = ()
 
     @property
     def n_bodies(self) -> int:
@@ -79,6 +88,26 @@ class _Body:
     element: int = -1  # its index among the mesh's triangles
     pinned: np.ndarray = None  # which of an element's nodes are fixed
     edge_materials: list | None = None  # per edge (counter-clockwise order): a joint material or None
+    pins: list = dataclasses.field(default_factory=list)  # world points of its fixed points (add_fixed_point)
+
+
+def _recorded(method):
+    """Record a successful call of a builder method (all its arguments, defaults filled
+    in) in the builder's recipe, so that the scene can be written out as a scene file.
+    Only methods that add one thing directly are recorded (add_blocks and
+    add_meshed_polygon are recorded as the add_polygon and add_mesh calls they make)."""
+    signature = inspect.signature(method)
+
+    @functools.wraps(method)
+    def wrapper(self, *args, **kwargs):
+        bound = signature.bind(self, *args, **kwargs)
+        bound.apply_defaults()
+        arguments = copy.deepcopy({k: v for k, v in bound.arguments.items() if k != "self"})
+        result = method(self, *args, **kwargs)
+        self._recipe.append((method.__name__, arguments))
+        return result
+
+    return wrapper
 
 
 class SceneBuilder:
@@ -91,17 +120,27 @@ class SceneBuilder:
     """
 
     def __init__(self, dt: float, gravity: Sequence[float] = (0.0, -9.81), *, tol: float = 1e-12,
-                 max_iter: int = 5000, margin: float | None = None, dynamic: float = 1.0, name: str = "scene"):
+                 max_iter: int = 5000, margin: float | None = None, dynamic: float = 1.0, name: str = "scene",
+                 capacities: dict | None = None):
         self.dt, self.gravity, self.tol, self.max_iter, self.margin, self.name = dt, gravity, tol, max_iter, margin, name
         self.dynamic = dynamic
+        unknown = sorted(set(capacities or {}) - {f.name for f in dataclasses.fields(Capacities)})
+        if unknown:
+            raise SceneError(f"scene: field 'capacities' has unknown buffer '{unknown[0]}' "
+                             f"(known: {', '.join(f.name for f in dataclasses.fields(Capacities))})")
+        self.capacities = dict(capacities or {})
+        self._measured: list[tuple[int, np.ndarray]] = []
+        self._fixed_points: list[tuple[int, np.ndarray]] = []
         self._bodies: list[_Body] = []
         self._materials: dict[str, dict[str, float]] = {"default": dict(CONTACT_LAW)}
-        self._loads: list[tuple[int, np.ndarray, np.ndarray, np.ndarray]] = []
+        self._loads: list[tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
         self._interfaces: dict[tuple[str, str], dict[str, float]] = {}
         self._connectors: list[_Connector] = []
         self._meshes: list[Mesh] = []
+        self._recipe: list[tuple[str, dict]] = []
 
     # -- materials ---------------------------------------------------------------------
+    @_recorded
     def add_material(self, name: str, friction: float = 0.0, restitution: float = 1.0, *, cohesion: float = 0.0,
                      rolling: float = 0.0, tensile: float = 0.0) -> str:
         """Declare (or redefine) a material and its contact law with itself.
@@ -124,6 +163,7 @@ class SceneBuilder:
         self._materials[name] = {k: float(v) for k, v in law.items()}
         return name
 
+    @_recorded
     def set_interface(self, material_a: str, material_b: str, **law: float) -> None:
         """Contact law between two different materials (overrides the smaller-value rule).
         Keywords: any of friction, restitution, cohesion, rolling, tensile."""
@@ -139,20 +179,119 @@ class SceneBuilder:
         self._interfaces[tuple(sorted((material_a, material_b)))] = {k: float(v) for k, v in law.items()}
 
     # -- loads -------------------------------------------------------------------------
-    def add_load(self, body: int, force, at=None, rate=(0.0, 0.0)) -> int:
-        """A point load on ``body``: F(t) = force + rate * t (N, world frame), applied at the
-        material point that is at ``at`` at t = 0 (default: the centroid); the point moves
-        with the body, the direction stays fixed (eqs. 2, 13). Returns the load index."""
+    @_recorded
+    def add_load(self, body: int, force=(0.0, 0.0), at=None, rate=(0.0, 0.0), history=None) -> int:
+        """A point load on ``body``: F(t) = force + rate * t + h(t) (N, world frame), applied
+        at the material point that is at ``at`` at t = 0 (default: the centroid); the point
+        moves with the body, the direction stays fixed (eqs. 2, 13). ``history``: rows
+        (t, fx, fy) with non-decreasing t, a load history h(t) linear between its rows and
+        held at its first and last values outside them (a step: two rows at one time).
+        Returns the load index."""
         label = f"load {len(self._loads)}"
         if isinstance(body, bool) or not isinstance(body, (int, np.integer)) or not 0 <= body < len(self._bodies):
             raise SceneError(f"{label}: field 'body' must be the index of an added body, got {body!r}")
         b = self._bodies[body]
         point = b.center if at is None else self._point(label, "at", at)
+        rows = np.zeros((1, 3))
+        if history is not None:
+            try:
+                rows = np.asarray(history, dtype=float)
+            except (TypeError, ValueError):
+                raise SceneError(f"{label}: field 'history' must be rows (t, fx, fy), got {history!r}") from None
+            if rows.ndim != 2 or rows.shape[1] != 3 or len(rows) == 0:
+                raise SceneError(f"{label}: field 'history' must be rows (t, fx, fy), got shape {rows.shape}")
+            validate.check_finite(label, "history", rows)
+            back = np.flatnonzero(np.diff(rows[:, 0]) < 0)
+            if len(back):
+                raise SceneError(f"{label}: field 'history': the times must not decrease (row {back[0] + 1} at "
+                                 f"t = {rows[back[0] + 1, 0]} follows t = {rows[back[0], 0]})")
         self._loads.append((int(body), point - b.center, self._point(label, "force", force),
-                            self._point(label, "rate", rate)))
+                            self._point(label, "rate", rate), rows))
         return len(self._loads) - 1
 
+    @_recorded
+    def add_measured_point(self, body: int, at) -> int:
+        """A measured point: the material point of ``body`` that is at ``at`` at t = 0,
+        whose path ``Trajectory.measured_points()`` gives (and the CSV output writes).
+        Returns its index."""
+        label = f"measured point {len(self._measured)}"
+        b = self._body_of(label, body)
+        point = self._point(label, "at", at)
+        self._check_on_body(label, "at", point, body)
+        self._measured.append((int(body), point - b.center))
+        return len(self._measured) - 1
+
+    def body_at(self, point) -> int:
+        """The index of the body whose material contains ``point`` (for points given
+        without a body, the DDA way). On the common boundary of two bodies it is ambiguous
+        (an error), except between elements of one meshed block (the field is continuous)."""
+        p = self._point("point", "at", point)
+        shapes = [self._world_shape(b) for b in self._bodies]
+        tol = 1e-9 * _scene_size(shapes)
+        near = [i for i, shape in enumerate(shapes) if validate.point_outside_by(p, shape) <= tol]
+        if not near:
+            raise SceneError(f"the point {tuple(p.tolist())} lies in no body (give 'body')")
+        inside = [i for i in near if validate.depth_inside(p, shapes[i]) > tol] or near
+        meshes = {self._bodies[i].mesh for i in inside}
+        if len(inside) > 1 and not (len(meshes) == 1 and -1 not in meshes):
+            raise SceneError(f"the point {tuple(p.tolist())} lies on the boundary of bodies "
+                             f"{', '.join(map(str, inside))} (give 'body')")
+        return inside[0]
+
+    @_recorded
+    def add_fixed_point(self, body: int, at) -> int:
+        """A fixed point (Shi's DDA): the material point of ``body`` that is at ``at`` (world,
+        t = 0) never moves. Exact: the body's dofs are those that keep the point's
+        displacement zero (eq. 7), rebuilt every step, and it turns about the point by
+        the exact finite rotation. Enough points make it immobile, and it is then fixed:
+        two distinct ones on a rigid body or a deformable disk or ring, three not on one
+        line on a deformable polygon. On a meshed block the point must be a node, which
+        is fixed (as ``add_mesh``'s ``fixed_nodes``). The body's initial velocity must be
+        zero at the point (a spin about it is allowed). A point on a fixed body is allowed
+        and changes nothing. Returns the fixed point's index."""
+        label = f"fixed point {len(self._fixed_points)}"
+        b = self._body_of(label, body)
+        point = self._point(label, "at", at)
+        self._check_on_body(label, "at", point, body)
+        size = _body_size(b)
+        if b.mesh >= 0:
+            self._pin_mesh_node(label, b, point, size)
+        elif not b.fixed:
+            r = point - b.center
+            moving = b.velocity + b.omega * np.array([-r[1], r[0]])
+            if np.linalg.norm(moving) > 1e-9 * (np.linalg.norm(b.velocity) + abs(b.omega) * size):
+                raise SceneError(f"{label}: {_body_label(b, body)} moves at {tuple(point.tolist())} at t = 0 "
+                                 f"(velocity {tuple(moving.tolist())}): its fields 'velocity' and "
+                                 f"'angular_velocity' must give zero velocity at a fixed point (a spin about it)")
+            b.pins.append(point)
+            if _immobile(b, size):
+                b.fixed, b.velocity, b.omega = True, np.zeros(2), 0.0
+        self._fixed_points.append((int(body), point))
+        return len(self._fixed_points) - 1
+
+    def _pin_mesh_node(self, label: str, b: "_Body", point: np.ndarray, size: float) -> None:
+        """A fixed point on an element of a meshed block: it must be one of its nodes, which
+        is then fixed in every element around it."""
+        mesh = self._meshes[b.mesh]
+        dist = np.linalg.norm(mesh.nodes[b.nodes] - point, axis=1)
+        k = int(np.argmin(dist))
+        node = int(b.nodes[k])
+        if dist[k] > 1e-9 * size:
+            raise SceneError(f"{label}: field 'at' {tuple(point.tolist())} is not a node of mesh {b.mesh}: a fixed "
+                             f"point on a meshed block must be at one of its nodes (nearest in this element: node "
+                             f"{node} at {tuple(mesh.nodes[node].tolist())})")
+        elements = [self._bodies[i] for i in mesh.bodies]
+        if any(np.any(e.velocity != 0) or e.omega != 0 for e in elements):
+            raise SceneError(f"{label}: a block with fixed nodes cannot have a velocity (mesh {b.mesh}'s fields "
+                             f"'velocity', 'angular_velocity')")
+        mesh.fixed_nodes[node] = True
+        for e in elements:
+            if node in e.nodes:
+                e.pinned = e.pinned | (e.nodes == node)
+                e.fixed = bool(e.pinned.all())
+
     # -- connectors (paper section 5) --------------------------------------------------
+    @_recorded
     def add_spring(self, body_a: int, body_b: int, at_a, at_b, stiffness: float, *, rest_length: float | None = None,
                    pretension: float = 0.0) -> int:
         """A spring of axial ``stiffness`` k (N/m) between the material points that are at
@@ -165,6 +304,7 @@ class SceneBuilder:
         return self._connect(_Connector(SPRING, label, body_a, body_b, at_a, at_b, float(stiffness), 0.0, 0.0,
                                         pretension, rest_length))
 
+    @_recorded
     def add_bolt(self, body_a: int, body_b: int, at_a, at_b, young: float, area: float, *,
                  pretension: float = 0.0) -> int:
         """A rock bolt (link element, eqs. 74-84) of Young's modulus ``young`` (Pa) and
@@ -178,6 +318,7 @@ class SceneBuilder:
         return self._connect(_Connector(BOLT, label, body_a, body_b, at_a, at_b, float(young) * float(area) / length,
                                         0.0, 0.0, pretension, None))
 
+    @_recorded
     def add_beam(self, body_a: int, body_b: int, at_a, at_b, young: float, area: float, inertia: float, *,
                  shear_modulus: float | None = None, section: str = "rectangular") -> int:
         """An elastic beam (eqs. 87-92) clamped to body_a at ``at_a`` and to body_b at
@@ -200,6 +341,7 @@ class SceneBuilder:
         return self._connect(_Connector(BEAM, label, body_a, body_b, at_a, at_b, axial, bending, b, 0.0, None))
 
     # -- bodies ------------------------------------------------------------------------
+    @_recorded
     def add_disk(self, center, radius, density, velocity=(0.0, 0.0), angular_velocity=0.0, fixed=False,
                  material="default", gravity=True, young=None, poisson=0.0, plane="stress", stress=None) -> int:
         """A disk (rigid: eq. 3; deformable: 4 dofs, eqs. 4-5). Returns its body index.
@@ -215,6 +357,7 @@ class SceneBuilder:
                                np.zeros(2), 0.0, fixed, material, gravity, geometry.round_second_moments(r)),
                          density, velocity, angular_velocity, (young, poisson, plane, stress))
 
+    @_recorded
     def add_ring(self, center, inner_radius, outer_radius, density, velocity=(0.0, 0.0), angular_velocity=0.0,
                  fixed=False, material="default", gravity=True, young=None, poisson=0.0, plane="stress", stress=None) -> int:
         """A ring: material between ``inner_radius`` > 0 and ``outer_radius`` (a particle).
@@ -233,6 +376,7 @@ class SceneBuilder:
                                np.zeros(2), 0.0, fixed, material, gravity, geometry.round_second_moments(ro, ri)),
                          density, velocity, angular_velocity, (young, poisson, plane, stress))
 
+    @_recorded
     def add_polygon(self, vertices, density, velocity=(0.0, 0.0), angular_velocity=0.0, fixed=False,
                     material="default", gravity=True, young=None, poisson=0.0, plane="stress", stress=None,
                     edge_materials=None) -> int:
@@ -288,6 +432,7 @@ class SceneBuilder:
         return out
 
     # -- meshed blocks (paper section 6.1) ----------------------------------------------
+    @_recorded
     def add_mesh(self, nodes, triangles, density, young, poisson=0.0, *, plane="stress", fixed_nodes=(),
                  velocity=(0.0, 0.0), angular_velocity=0.0, fixed=False, material="default", gravity=True,
                  stress=None) -> "Mesh":
@@ -402,7 +547,10 @@ class SceneBuilder:
         velocity = np.zeros((n, NDOF))
         velocity[:, :2] = [b.velocity for b in self._bodies]
         velocity[:, 2] = [b.omega for b in self._bodies]
+        knots = _load_knots([ld[4] for ld in self._loads])
         capacity = initial_capacities(kinds, fixed, centers, local, mask, bound, velocity, self.dt, g, margin)
+        capacity = dataclasses.replace(capacity, **{k: max(int(v), getattr(capacity, k))
+                                                    for k, v in self.capacities.items()})
         model = Model(
             kind=jnp.asarray(kinds), fixed=jnp.asarray(fixed),
             radius=jnp.asarray([b.radius for b in self._bodies], float),
@@ -421,9 +569,11 @@ class SceneBuilder:
             mesh=jnp.asarray(np.array([b.mesh for b in self._bodies], np.int32)),
             load_body=jnp.asarray([ld[0] for ld in self._loads], jnp.int32),
             load_point=jnp.asarray(np.reshape([ld[1] for ld in self._loads], (-1, 2))),
+            load_times=jnp.asarray(knots[..., 0]),
             joint_key=jnp.full((1,), NO_JOINT, jnp.int64), joint_a=jnp.zeros((1,), jnp.int32),
             joint_b=jnp.zeros((1,), jnp.int32), joint_point=jnp.zeros((1, 2)),
             **connector_model(self._connectors, centers),
+            **pin_model(self._bodies),
             **dof_groups(self._bodies, self._connectors),
             capacity=capacity, n_bodies=n, max_vertices=v_max)
         key, force = zeros_contact_memory(capacity.contacts)
@@ -439,15 +589,34 @@ class SceneBuilder:
                         **{field: jnp.asarray(table) for field, table in tables.items()},
                         load_force=jnp.asarray(np.reshape([ld[2] for ld in self._loads], (-1, 2))),
                         load_rate=jnp.asarray(np.reshape([ld[3] for ld in self._loads], (-1, 2))),
+                        load_history=jnp.asarray(knots[..., 1:]),
                         dynamic=jnp.asarray(float(self.dynamic)),
                         tol=jnp.asarray(float(self.tol)), max_iter=jnp.asarray(float(self.max_iter)),
                         margin=jnp.asarray(margin), rupture_width=jnp.asarray(0.0),
                         **connector_params(self._connectors))
         if np.any(tables["tensile"] > 0):
             model, state = cement.with_joints(model, state, params, tol=1e-9 * size)
-        return Scene(model, state, params, tuple(labels), tuple(names), self.name)
+        settings = {"dt": self.dt, "gravity": tuple(np.asarray(self.gravity, float).tolist()), "tol": self.tol,
+                    "max_iter": self.max_iter, "margin": self.margin, "dynamic": self.dynamic,
+                    "capacities": dict(self.capacities)}
+        return Scene(model, state, params, tuple(labels), tuple(names), self.name,
+                     recipe=(copy.deepcopy(settings), tuple(self._recipe)), measured=tuple(self._measured))
 
     # -- helpers -----------------------------------------------------------------------
+    def _body_of(self, label: str, body) -> "_Body":
+        if isinstance(body, bool) or not isinstance(body, (int, np.integer)) or not 0 <= body < len(self._bodies):
+            raise SceneError(f"{label}: field 'body' must be the index of an added body, got {body!r}")
+        return self._bodies[body]
+
+    def _check_on_body(self, label: str, field: str, point: np.ndarray, body: int) -> None:
+        """``point`` must lie in or on ``body`` (to round-off of its size)."""
+        b = self._bodies[body]
+        size = b.radius if b.kind != POLYGON else float(np.max(np.linalg.norm(b.local, axis=1)))
+        outside = validate.point_outside_by(point, self._world_shape(b))
+        if outside > 1e-9 * size:
+            raise SceneError(f"{label}: field '{field}' {tuple(point.tolist())} lies {outside:.3g} m outside "
+                             f"{_body_label(b, body)}")
+
     def _connector_length(self, label: str, at_a, at_b) -> float:
         """The distance of the two attachment points (an error if they coincide)."""
         length = float(np.linalg.norm(self._point(label, "at_b", at_b) - self._point(label, "at_a", at_a)))
@@ -466,12 +635,7 @@ class SceneBuilder:
             raise SceneError(f"{label}: fields 'body_a' and 'body_b' name the same body {conn.body_a}")
         conn.at_a, conn.at_b = self._point(label, "at_a", conn.at_a), self._point(label, "at_b", conn.at_b)
         for field, body, point in (("at_a", conn.body_a, conn.at_a), ("at_b", conn.body_b, conn.at_b)):
-            b = self._bodies[body]
-            size = b.radius if b.kind != POLYGON else float(np.max(np.linalg.norm(b.local, axis=1)))
-            outside = validate.point_outside_by(point, self._world_shape(b))
-            if outside > 1e-9 * size:
-                raise SceneError(f"{label}: field '{field}' {tuple(point.tolist())} lies {outside:.3g} m outside "
-                                 f"{_body_label(b, body)}")
+            self._check_on_body(label, field, point, body)
         validate.check_finite(label, "pretension", conn.pretension)
         conn.pretension = float(conn.pretension)
         if conn.rest_length is not None:
@@ -617,7 +781,7 @@ def dof_groups(bodies: list[_Body], connectors: list[_Connector]) -> dict:
     for i, b in enumerate(bodies):
         if b.mesh >= 0:
             ties.append((first.setdefault(b.mesh, i), i))
-    tied = np.zeros(n, bool)
+    tied = np.array([bool(_pin_records(b)) for b in bodies], bool).reshape(n)  # a pinned body: a group of its own
     for i, j in ties:
         parent[root(i)] = root(j)
         tied[[i, j]] = True
@@ -646,12 +810,21 @@ def dof_groups(bodies: list[_Body], connectors: list[_Connector]) -> dict:
                     dofs[g, s, 2 * k: 2 * k + 2] = node_dof[(b.mesh, node)] + np.arange(2)
             else:
                 active = np.flatnonzero(np.abs(_basis(b)).sum(0) > 0)
+                roles = [role for _, role in _pin_records(b)]
+                if roles:  # the pin keeps u0, v0 (its map's first columns are zero); two pins: 2 dofs
+                    active = np.array([2, 3]) if 1 in roles else active[active >= 2]
                 dofs[g, s, active] = count[g] + np.arange(len(active))
                 count[g] += len(active)
     r = int(max(count.max(initial=0), 1))
     free = np.arange(r)[None, :] < count[:, None]
     return dict(group_members=jnp.asarray(members), group_dofs=jnp.asarray(dofs), group_free=jnp.asarray(free),
                 body_group=jnp.asarray(body_group), body_slot=jnp.asarray(body_slot))
+
+
+def _load_knots(histories: list[np.ndarray]) -> np.ndarray:
+    """(L, K, 3) load histories padded to a common K by repeating each one's last row."""
+    k = max([len(h) for h in histories] + [1])
+    return np.reshape([np.concatenate([h, np.repeat(h[-1:], k - len(h), 0)]) for h in histories], (-1, k, 3))
 
 
 def _check_contact_law(label: str, law: dict) -> None:
@@ -663,6 +836,45 @@ def _check_contact_law(label: str, law: dict) -> None:
             raise SceneError(f"{label}: field '{field}' must be >= 0, got {value}")
     if law.get("restitution", 0.0) > 1.0:
         raise SceneError(f"{label}: field 'restitution' must be in [0, 1], got {law['restitution']}")
+
+
+def _body_size(b: _Body) -> float:
+    return b.radius if b.kind != POLYGON else float(np.max(np.linalg.norm(b.local, axis=1)))
+
+
+def _immobile(b: _Body, size: float) -> bool:
+    """Whether the body's fixed points leave it no motion: two distinct ones on a rigid
+    body or a particle, three not on one line on a deformable polygon."""
+    first = b.pins[0]
+    far = max(b.pins, key=lambda p: float(np.linalg.norm(p - first)))
+    span = float(np.linalg.norm(far - first))
+    if span <= 1e-9 * size:
+        return False
+    if b.young == 0.0 or b.kind != POLYGON:
+        return True
+    axis = (far - first) / span
+    return any(abs(axis[0] * (p - first)[1] - axis[1] * (p - first)[0]) > 1e-9 * size for p in b.pins)
+
+
+def _pin_records(b: _Body) -> list[tuple[np.ndarray, int]]:
+    """The fixed points that constrain a movable body (pins.py): the centre it turns about
+    (role 0) and, on a deformable polygon whose points are on one line, the farthest
+    distinct one (role 1); the others are redundant."""
+    if b.fixed or b.mesh >= 0 or not b.pins:
+        return []
+    first = b.pins[0]
+    far = max(b.pins, key=lambda p: float(np.linalg.norm(p - first)))
+    if np.linalg.norm(far - first) <= 1e-9 * _body_size(b):
+        return [(first, 0)]
+    return [(first, 0), (far, 1)]
+
+
+def pin_model(bodies: list[_Body]) -> dict:
+    """The Model fields of the fixed points (per record: body, world point, role)."""
+    records = [(i, p, role) for i, b in enumerate(bodies) for p, role in _pin_records(b)]
+    return dict(pin_body=jnp.asarray(np.array([r[0] for r in records], np.int32).reshape(-1)),
+                pin_point=jnp.asarray(np.reshape([r[1] for r in records], (-1, 2)).astype(float)),
+                pin_role=jnp.asarray(np.array([r[2] for r in records], np.int32).reshape(-1)))
 
 
 def _basis(b: _Body) -> np.ndarray:

@@ -249,3 +249,49 @@ def _inside(p: np.ndarray, poly: np.ndarray) -> bool:
             if x < cross_x:
                 inside = not inside
     return inside
+
+
+# -- assigning blocks: holes, regions and material lines (DDA's hole and material lines)
+def _point(value, what: str) -> np.ndarray:
+    p = np.asarray(value, float)
+    if p.shape != (2,) or not np.isfinite(p).all():
+        raise SceneError(f"{what} must be a finite point (x, y), got {value!r}")
+    return p
+
+
+def blocks_containing(blocks: list[Block], point) -> list[int]:
+    """Indices of the blocks whose interior contains ``point`` (a hole point)."""
+    p = _point(point, "a hole point")
+    return [k for k, b in enumerate(blocks) if _inside(p, b.vertices)]
+
+
+def blocks_inside(blocks: list[Block], polygon) -> list[int]:
+    """Indices of the blocks whose centroid lies in the simple polygon ``polygon``."""
+    poly = np.asarray(polygon, float)
+    problem = geometry.simple_polygon_problem(poly) if poly.ndim == 2 and poly.shape[1:] == (2,) else "not points"
+    if problem is not None:
+        raise SceneError(f"the region is not a valid polygon: {problem}")
+    return [k for k, b in enumerate(blocks) if _inside(np.asarray(geometry.polygon_properties(b.vertices)[1]), poly)]
+
+
+def blocks_crossed(blocks: list[Block], start, end) -> list[int]:
+    """Indices of the blocks whose interior the segment start-end passes through (a
+    material line)."""
+    a, b = _point(start, "a material line's 'from'"), _point(end, "a material line's 'to'")
+    d = b - a
+    out = []
+    for k, block in enumerate(blocks):
+        v, w = block.vertices, np.roll(block.vertices, -1, axis=0)
+        cuts = [0.0, 1.0]
+        for p, q in zip(v, w):
+            e = q - p
+            den = d[0] * e[1] - d[1] * e[0]
+            if den != 0:
+                t = ((p[0] - a[0]) * e[1] - (p[1] - a[1]) * e[0]) / den
+                s = ((p[0] - a[0]) * d[1] - (p[1] - a[1]) * d[0]) / den
+                if 0 <= t <= 1 and 0 <= s <= 1:
+                    cuts.append(float(t))
+        cuts = np.unique(cuts)
+        if any(_inside(a + 0.5 * (t0 + t1) * d, v) for t0, t1 in zip(cuts[:-1], cuts[1:])):
+            out.append(k)
+    return out

@@ -27,11 +27,13 @@ class Shape:
     vertices: int
     materials: int
     loads: int
+    knots: int
     joints: int
     connectors: int
     groups: int
     group_size: int
     group_dofs: int
+    pins: int
     capacity: Capacities
 
     @staticmethod
@@ -42,9 +44,11 @@ class Shape:
         caps = [dataclasses.astuple(s.model.capacity) for s in scenes]
         return Shape(most(lambda s: s.model.n_bodies), most(lambda s: s.model.max_vertices),
                      most(lambda s: s.params.friction.shape[0]), most(lambda s: s.model.load_body.shape[0]),
+                     most(lambda s: s.model.load_times.shape[1]),
                      most(lambda s: s.model.joint_key.shape[0]), most(lambda s: s.model.connector_a.shape[0]),
                      most(lambda s: s.model.group_members.shape[0]), most(lambda s: s.model.group_members.shape[1]),
                      most(lambda s: s.model.group_free.shape[1]),
+                     most(lambda s: s.model.pin_body.shape[0]),
                      Capacities(*np.max(caps, 0).tolist()))
 
 
@@ -56,6 +60,13 @@ def _pad(x, size: int, fill, axis: int = 0):
     shape = list(x.shape)
     shape[axis] = extra
     return np.concatenate([x, np.full(shape, fill, x.dtype)], axis)
+
+
+def _pad_knots(x, size: int):
+    """Pad a load history's knots (axis 1) by repeating the last: the same history."""
+    x = np.asarray(x)
+    extra = size - x.shape[1]
+    return x if extra == 0 else np.concatenate([x, np.repeat(x[:, -1:], extra, 1)], 1)
 
 
 def pad_scene(scene: Scene, shape: Shape) -> tuple[Model, State, Params]:
@@ -84,11 +95,14 @@ def pad_scene(scene: Scene, shape: Shape) -> tuple[Model, State, Params]:
         material=bodies(m.material, 0), dof_projector=bodies(m.dof_projector, 0.0),
         dof_basis=bodies(m.dof_basis, 0.0), mesh=bodies(m.mesh, -1),
         load_body=_pad(m.load_body, shape.loads, 0), load_point=_pad(m.load_point, shape.loads, 0.0),
+        load_times=_pad(_pad_knots(m.load_times, shape.knots), shape.loads, 0.0),
         joint_key=_pad(m.joint_key, shape.joints, NO_JOINT), joint_a=_pad(m.joint_a, shape.joints, 0),
         joint_b=_pad(m.joint_b, shape.joints, 0), joint_point=_pad(m.joint_point, shape.joints, 0.0),
         **{f: _pad(getattr(m, f), shape.connectors, fill)  # inert padding connectors: zero stiffness
            for f, fill in (("connector_kind", 0), ("connector_a", 0), ("connector_b", 1), ("connector_pa", 0.0),
                            ("connector_pb", 0.0), ("connector_length", 1.0), ("connector_chord0", 1.0))},
+        pin_body=_pad(m.pin_body, shape.pins, 0), pin_point=_pad(m.pin_point, shape.pins, 0.0),
+        pin_role=_pad(m.pin_role, shape.pins, -1),  # inert padding pins
         group_members=_pad(_pad(np.asarray(m.group_members), shape.group_size, -1, axis=1), shape.groups, -1),
         group_dofs=_pad(_pad(np.asarray(m.group_dofs), shape.group_size, -1, axis=1), shape.groups, -1),
         group_free=_pad(_pad(np.asarray(m.group_free), shape.group_dofs, False, axis=1), shape.groups, False),
@@ -103,6 +117,7 @@ def pad_scene(scene: Scene, shape: Shape) -> tuple[Model, State, Params]:
         friction=table(p.friction), restitution=table(p.restitution), cohesion=table(p.cohesion),
         rolling=table(p.rolling), tensile=table(p.tensile),
         load_force=_pad(p.load_force, shape.loads, 0.0), load_rate=_pad(p.load_rate, shape.loads, 0.0),
+        load_history=_pad(_pad_knots(p.load_history, shape.knots), shape.loads, 0.0),
         **{f: _pad(getattr(p, f), shape.connectors, 0.0)
            for f in ("connector_axial", "connector_bending", "connector_shear", "connector_pretension")})
     c = shape.capacity.contacts

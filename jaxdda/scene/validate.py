@@ -73,6 +73,16 @@ def point_outside_by(point, shape) -> float:
     return max(r - shape[2], inner - r, 0.0)
 
 
+def depth_inside(point, shape) -> float:
+    """How deep ``point`` lies inside the material of a body's world ``shape`` (0 outside)."""
+    p = np.asarray(point, float)
+    if shape[0] == "polygon":
+        return float(_point_depth(p[None], shape[1])[0])
+    r = float(np.linalg.norm(p - shape[1]))
+    inner = shape[3] if shape[0] == "ring" else 0.0
+    return max(min(shape[2] - r, r - inner if inner else shape[2] - r), 0.0)
+
+
 def _edges(v):
     return v, np.roll(v, -1, axis=0)
 
