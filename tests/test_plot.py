@@ -49,3 +49,120 @@ def test_missing_matplotlib_message(monkeypatch):
     monkeypatch.setitem(sys.modules, "matplotlib", None)
     with pytest.raises(ImportError, match=r'pip install "jaxdda\[plot\]"'):
         plot_trajectory(trajectory(1))
+
+
+# ------------------------------------------------ charts: paths, forces, energy, force network
+
+from matplotlib.collections import LineCollection  # noqa: E402
+
+from jaxdda.energy import energy  # noqa: E402
+from jaxdda.types import ContactReport, StepInfo  # noqa: E402
+from jaxdda.viz.charts import (NETWORK_LABEL, plot_energy, plot_force_network, plot_forces,  # noqa: E402
+                               plot_paths, plot_report)
+
+# Per step k (scaled by k + 1): contacts (a, b, normal force, point, valid) of the "mix" scene
+# (0: fixed base, 1: disk, 2: ring, 3: triangle). Touching pairs: 0-1 (3 + 1 at two points),
+# 1-2 (6), 0-3 (2); 2-3 has a contact without force, and an invalid slot carries junk.
+CONTACTS = [(1, 0, 3.0, (-3.0, 0.0), True), (1, 0, 1.0, (-2.0, 0.0), True), (2, 1, 6.0, (-1.5, 1.5), True),
+            (3, 2, 0.0, (1.5, 1.0), True), (3, 0, 2.0, (3.0, 0.0), True), (2, 3, 99.0, (0.0, 0.0), False)]
+PAIR_FORCE = {(0, 1): 4.0, (1, 2): 6.0, (0, 3): 2.0}
+
+
+def with_contacts(traj: Trajectory) -> Trajectory:
+    s, c = len(traj.time) - 1, len(CONTACTS)
+    scale = (np.arange(s) + 1.0)[:, None]
+    a, b, fn, point, valid = (np.array(col) for col in zip(*CONTACTS))
+    normal = np.tile([0.0, 1.0], (s, c, 1))
+    report = ContactReport(
+        valid=np.tile(valid, (s, 1)), a=np.tile(a, (s, 1)), b=np.tile(b, (s, 1)),
+        point=np.tile(point, (s, 1, 1)), normal=normal, normal_force=scale * fn,
+        shear_force=np.zeros((s, c)), force=scale[..., None] * fn[:, None] * normal, moment=np.zeros((s, c)),
+        cemented=np.zeros((s, c), bool), gap=np.zeros((s, c)))
+    info = StepInfo(iterations=np.ones(s, np.int32), residual=np.zeros(s), converged=np.ones(s, bool),
+                    needed=np.zeros((s, 5), np.int32), overflow=np.zeros(s, bool), n_contacts=np.full(s, c),
+                    max_penetration=np.zeros(s), joint_tension=np.zeros((s, 0)), joint_broken=np.zeros((s, 0), bool),
+                    connector_force=np.zeros((s, 0, 4)), contacts=report)
+    moving = ~np.asarray(traj.scene.model.fixed)
+    velocity = np.zeros_like(traj.velocity)
+    velocity[:, moving] = (20.0, -20.0, 30.0)  # as the poses of trajectory() move
+    return Trajectory(traj.scene, traj.time, traj.centroid, traj.rotation, velocity, traj.stress, info,
+                      traj.final_state)
+
+
+def network(fig) -> LineCollection:
+    (lines,) = [c for c in fig.axes[0].collections if c.get_label() == NETWORK_LABEL]
+    return lines
+
+
+@pytest.mark.parametrize("step", [1, -1])
+def test_force_network_widths_follow_pair_forces(step):
+    traj = with_contacts(trajectory())
+    lines = network(plot_force_network(traj, step=step, max_width=6.0))
+    segments, widths = lines.get_segments(), np.asarray(lines.get_linewidths())
+    assert len(segments) == len(widths) == len(PAIR_FORCE)  # 2-3 carries no force: no line
+    k = step % (len(traj.time) - 1)
+    centroid = traj.centroid[k + 1]  # positions at the end of the step
+    expected = {}  # from each line's ends back to its pair
+    for (i, j), f in PAIR_FORCE.items():
+        if i == 0:  # with the fixed base: from the free body's centroid to the contact point
+            own = [p for a, b, fn, p, v in CONTACTS if {a, b} == {i, j} and v and fn]
+            weights = [fn for a, b, fn, p, v in CONTACTS if {a, b} == {i, j} and v and fn]
+            end = np.average(own, axis=0, weights=weights)
+        else:
+            end = centroid[j]
+        expected[(tuple(np.round(centroid[j if i == 0 else i], 9)), tuple(np.round(end, 9)))] = f * (k + 1)
+    drawn = {(tuple(np.round(s[0], 9)), tuple(np.round(s[1], 9))): w for s, w in zip(segments, widths)}
+    assert drawn.keys() == expected.keys()
+    peak = max(expected.values())
+    for key, force in expected.items():
+        assert drawn[key] == pytest.approx(6.0 * force / peak, rel=1e-12)
+
+
+def test_forces_plot_carries_pair_sums():
+    traj = with_contacts(trajectory(5))
+    ax = plot_forces(traj).axes[0]
+    lines = {line.get_label(): line for line in ax.get_lines()}
+    assert set(lines) == {"contact 0 (fixed)-1", "contact 1-2", "contact 0 (fixed)-3"}
+    for (i, j), f in PAIR_FORCE.items():
+        label = f"contact {i} (fixed)-{j}" if i == 0 else f"contact {i}-{j}"
+        np.testing.assert_allclose(lines[label].get_xdata(), traj.time[1:])
+        np.testing.assert_allclose(lines[label].get_ydata(), f * np.arange(1, 5))
+
+
+def test_energy_plot_carries_energy_values():
+    traj = with_contacts(trajectory())
+    ax = plot_energy(traj).axes[0]
+    lines = {line.get_label(): line for line in ax.get_lines()}
+    e = energy(traj)
+    assert set(lines) == {"kinetic", "potential", "elastic", "total"}
+    assert e["kinetic"].min() > 0 and e["potential"][-1] != 0
+    for name, line in lines.items():
+        np.testing.assert_array_equal(line.get_xdata(), traj.time)
+        np.testing.assert_array_equal(line.get_ydata(), e[name])
+
+
+def test_paths_plot_tracks_centroids():
+    traj = trajectory()
+    ax = plot_paths(traj).axes[0]
+    tracks = {line.get_label(): line for line in ax.get_lines() if not line.get_label().startswith("_")}
+    labels = traj.scene.labels
+    assert set(tracks) == {labels[1], labels[2], labels[3]}  # the free bodies, not the fixed base
+    for i in (1, 2, 3):
+        np.testing.assert_array_equal(np.stack([tracks[labels[i]].get_xdata(), tracks[labels[i]].get_ydata()], -1),
+                                      traj.centroid[:, i])
+    only = plot_paths(traj, bodies=[2]).axes[0]
+    assert [line.get_label() for line in only.get_lines() if not line.get_label().startswith("_")] == [labels[2]]
+
+
+def test_report_writes_four_pngs(tmp_path):
+    paths = plot_report(with_contacts(trajectory()), tmp_path / "report")
+    assert [p.name for p in paths] == ["paths.png", "forces.png", "energy.png", "network.png"]
+    for p in paths:
+        assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and p.stat().st_size > 1000
+
+
+@pytest.mark.parametrize("draw", [plot_paths, plot_forces, plot_energy, plot_force_network])
+def test_charts_missing_matplotlib_message(monkeypatch, draw):
+    monkeypatch.setitem(sys.modules, "matplotlib", None)
+    with pytest.raises(ImportError, match=r'pip install "jaxdda\[plot\]"'):
+        draw(with_contacts(trajectory(2)))

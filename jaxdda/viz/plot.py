@@ -63,6 +63,23 @@ def connector_lines(model, centroid: np.ndarray, rotation: np.ndarray) -> list:
     return [[p, q] for p, q in zip(pa, pb)]
 
 
+def new_axes(ax=None, path=None, figsize=(7, 7)):
+    """(figure, axes) to draw into: ``ax`` and its figure when given; else a new figure, on
+    the Agg canvas when it is to be saved to ``path`` (no display needed), else pyplot's."""
+    figure, _, _ = _import_matplotlib()
+    if ax is not None:
+        return ax.figure, ax
+    if path is not None:
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+        fig = figure.Figure(figsize=figsize)
+        FigureCanvasAgg(fig)
+        return fig, fig.add_subplot()
+    import matplotlib.pyplot as plt
+
+    return plt.subplots(figsize=figsize)
+
+
 def _rotation(theta):
     c, s = np.cos(theta), np.sin(theta)
     return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
@@ -78,19 +95,7 @@ def plot_trajectory(traj, path=None, *, ax=None, title=None):
     Returns the matplotlib Figure.
     """
     figure, patches, collections = _import_matplotlib()
-    if ax is None:
-        if path is not None:
-            from matplotlib.backends.backend_agg import FigureCanvasAgg
-
-            fig = figure.Figure(figsize=(7, 7))
-            FigureCanvasAgg(fig)
-            ax = fig.add_subplot()
-        else:
-            import matplotlib.pyplot as plt
-
-            fig, ax = plt.subplots(figsize=(7, 7))
-    else:
-        fig = ax.figure
+    fig, ax = new_axes(ax, path)
 
     model = traj.scene.model
     fixed = np.asarray(model.fixed, bool)
