@@ -1,5 +1,5 @@
-"""Command line: ``jaxdda run NAME_OR_FILE [--steps N] [--out run.npz] [--plot run.png]``
-and ``jaxdda list``."""
+"""Command line: ``jaxdda run NAME_OR_FILE [--steps N] [--out run.npz] [--plot run.png] ...``,
+``jaxdda export NAME FILE.toml`` and ``jaxdda list``."""
 from __future__ import annotations
 
 import argparse
@@ -30,10 +30,10 @@ def _positive_int(text: str) -> int:
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="jaxdda", description="Differentiable 2D DDA contact simulations.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    run = sub.add_parser("run", help="simulate an example or a JSON scene file",
-                         description="Simulate a built-in example (see 'jaxdda list') or a JSON scene "
+    run = sub.add_parser("run", help="simulate an example or a scene file",
+                         description="Simulate a built-in example (see 'jaxdda list') or a TOML or JSON scene "
                                      "file (docs/scene-format.md) and summarise the run.")
-    run.add_argument("scene", metavar="NAME_OR_FILE", help="example name or path to a .json scene file")
+    run.add_argument("scene", metavar="NAME_OR_FILE", help="example name or path to a .toml or .json scene file")
     run.add_argument("--steps", type=_positive_int,
                      help="number of steps (default: the file's \"steps\", or the example's default)")
     run.add_argument("--out", metavar="FILE.npz", help="save the trajectory and step diagnostics (numpy .npz)")
@@ -46,8 +46,22 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--vtk", metavar="DIR", help="save a ParaView time series (.pvd + .vtp) of bodies and contacts")
     run.add_argument("--vtk-every", type=_positive_int, default=1, metavar="K",
                      help="with --vtk: every K-th step (default 1; the last is always written)")
+    run.add_argument("--report", metavar="DIR", help="save pictures of paths, forces, energy and the force network "
+                                                   "(needs matplotlib)")
+    run.add_argument("--csv", metavar="DIR", help="save measured-point and load-point histories as CSV")
     run.add_argument("--chunk", type=_positive_int, default=2000,
                      help="steps per compiled chunk (default: 2000)")
+    export = sub.add_parser("export", help="write a built-in example as a scene file",
+                            description="Write a built-in example as a TOML (or, for a .json path, JSON) scene "
+                                        "file that 'jaxdda run FILE' runs as the example.")
+    export.add_argument("name", metavar="NAME", help="example name (see 'jaxdda list')")
+    export.add_argument("path", metavar="FILE", help="the scene file to write (.toml or .json)")
+    ntdda = sub.add_parser("ntdda", help="convert ntdda (DDA for Windows) input files to a scene file",
+                           description="Convert a DDA for Windows (ntdda) geometry file and, optionally, its "
+                                       "analysis file (DDAML or plain) to a TOML or JSON scene file.")
+    ntdda.add_argument("geometry", metavar="GEO", help="the geometry file")
+    ntdda.add_argument("analysis", metavar="ANA", nargs="?", help="the analysis file")
+    ntdda.add_argument("--out", metavar="FILE", required=True, help="the scene file to write (.toml or .json)")
     sub.add_parser("list", help="list the built-in examples")
     return parser
 
@@ -64,6 +78,10 @@ def main(argv: list[str] | None = None) -> int:
             return _list()
         if args.command == "run":
             return _run(args)
+        if args.command == "export":
+            return _export(args)
+        if args.command == "ntdda":
+            return _ntdda(args)
         parser.print_help(sys.stderr)
         return 2
     except (_UsageError, SceneError) as err:
@@ -80,17 +98,42 @@ def _list() -> int:
     return 0
 
 
+def _export(args) -> int:
+    if args.name not in examples.names():
+        raise _UsageError(f"unknown example {args.name!r} (examples: {', '.join(examples.names())})")
+    _check_writable("export", args.path)
+    from jaxdda.scene.io import save_scene
+
+    save_scene(examples.get(args.name), args.path, steps=examples.default_steps(args.name))
+    print(f"wrote {args.path}")
+    return 0
+
+
+def _ntdda(args) -> int:
+    import json
+
+    from jaxdda.scene.io import toml_text
+    from jaxdda.scene.ntdda import read_ntdda
+
+    _check_writable("--out", args.out)
+    data = read_ntdda(args.geometry, args.analysis)
+    out = Path(args.out)
+    out.write_text(json.dumps(data, indent=1) if out.suffix.lower() == ".json" else toml_text(data), encoding="utf-8")
+    print(f"wrote {out} ({len(data.get('bodies', []))} blocks)")
+    return 0
+
+
 def _load(spec: str):
     """(scene, default steps) of an example name or a scene file."""
     if spec in examples.names():
         return examples.get(spec), examples.default_steps(spec)
     path = Path(spec)
-    if path.suffix.lower() == ".json" or path.exists():
+    if path.suffix.lower() in (".json", ".toml") or path.exists():
         from jaxdda.scene.loader import load_scene
 
         return load_scene(path)
     raise _UsageError(f"unknown example {spec!r} and no such file (examples: {', '.join(examples.names())}; "
-                      "or give the path to a .json scene file)")
+                      "or give the path to a .toml or .json scene file)")
 
 
 def _check_writable(option: str, target: str | None) -> None:
@@ -102,9 +145,10 @@ def _run(args) -> int:
     _check_writable("--out", args.out)
     _check_writable("--plot", args.plot)
     _check_writable("--animate", args.animate)
-    if args.vtk is not None and Path(args.vtk).exists() and not Path(args.vtk).is_dir():
-        raise _UsageError(f"--vtk {args.vtk}: not a directory")
-    if args.plot or args.animate:
+    for option, folder in (("--vtk", args.vtk), ("--csv", args.csv), ("--report", args.report)):
+        if folder is not None and Path(folder).exists() and not Path(folder).is_dir():
+            raise _UsageError(f"{option} {folder}: not a directory")
+    if args.plot or args.animate or args.report:
         from jaxdda.viz.plot import _import_matplotlib
 
         try:
@@ -136,13 +180,20 @@ def _run(args) -> int:
     print(f"  contacts          max {int(np.max(info.n_contacts))}{of}")
     print(f"  penetration       max {float(np.max(info.max_penetration)):.3g}{of}")
     if args.out:
-        c = info.contacts
-        np.savez_compressed(
-            args.out, time=traj.time, centroid=traj.centroid, rotation=traj.rotation, velocity=traj.velocity,
-            iterations=info.iterations, residual=info.residual, converged=info.converged,
-            n_contacts=info.n_contacts, max_penetration=info.max_penetration, contact_a=c.a, contact_b=c.b,
-            contact_valid=c.valid, contact_force=c.force, contact_point=c.point)
+        from jaxdda.export import save_npz
+
+        save_npz(traj, args.out)
         print(f"  wrote {args.out}")
+    if args.report:
+        from jaxdda.viz.charts import plot_report
+
+        for path in plot_report(traj, args.report):
+            print(f"  wrote {path}")
+    if args.csv:
+        from jaxdda.export import write_csv
+
+        for path in write_csv(traj, args.csv) or ["nothing: the scene has no measured or load points"]:
+            print(f"  wrote {path}")
     if args.plot:
         from jaxdda.viz.plot import plot_trajectory
 
