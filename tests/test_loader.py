@@ -107,6 +107,9 @@ at = [-4, 1.5]
 body = 3
 at = [4, 2]
 
+[[fixed_points]]
+at = [3, 0.5]              # a corner of body 3
+
 [[connectors]]
 type = "spring"
 body_a = 1
@@ -183,6 +186,19 @@ def test_points_loads_and_connectors(everything):
     assert [b for b, _ in scene.measured] == [1, 3]
     np.testing.assert_allclose(origin[3] + scene.measured[1][1], [4, 2])
     assert int(model.connector_a[0]) == 1 and int(model.connector_b[0]) == 2
+    assert np.asarray(model.pin_body).tolist() == [3]
+    np.testing.assert_allclose(np.asarray(model.pin_point), [[3, 0.5]])
+
+
+def test_a_scene_file_writes_back_to_itself(everything, tmp_path):
+    """Rock masses, meshes, fixed, load and measured points and histories survive a write
+    and a read (as the polygons, meshes and points they became)."""
+    scene, steps = everything
+    again, _ = load_scene(save_scene(scene, tmp_path / "again.toml", steps=steps))
+    assert again.measured[1][0] == scene.measured[1][0] and np.array_equal(again.measured[1][1], scene.measured[1][1])
+    for part in ("model", "state", "params"):
+        for x, y in zip(jax.tree.leaves(getattr(scene, part)), jax.tree.leaves(getattr(again, part))):
+            assert np.array_equal(np.asarray(x), np.asarray(y))
 
 
 @pytest.mark.parametrize("name", examples.names())
