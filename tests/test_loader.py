@@ -286,16 +286,23 @@ BASE = tomllib.loads(SCENE_TOML)
     (lambda d: d["measured_points"][0].update(at=[7, 0]), "lies on the boundary of bodies"),
     (lambda d: d["connectors"][0].update(stifness=1), "connectors[0].stifness: unknown key"),
     (lambda d: d["connectors"][0].update(type="rope"), "connectors[0].type: unknown type \"rope\""),
+    (lambda d: d["connectors"][0].pop("at_b"), "connectors[0].at_b: missing"),
+    (lambda d: [d["connectors"][0].pop(k) for k in ("at_b", "body_b")], "connectors[0].body_b: missing: give"),
     (lambda d: d.update(bodies=[], meshes=[], rock_masses=[], loads=[], measured_points=[], connectors=[]),
      "no bodies"),
 ])
 def test_errors_name_the_key_path(edit, expected):
-    data = copy.deepcopy(BASE)
+    message = error_of(BASE, edit)
+    assert expected in message and message.startswith("scene file: ")
+
+
+def error_of(data, edit) -> str:
+    """The message of the SceneError that ``data`` edited by ``edit`` raises."""
+    data = copy.deepcopy(data)
     edit(data)
     with pytest.raises(SceneError) as err:
         scene_from_dict(data)
-    assert expected in str(err.value)
-    assert str(err.value).startswith("scene file: ")
+    return str(err.value)
 
 
 def test_file_errors(tmp_path):
@@ -350,14 +357,10 @@ def test_meshes_and_their_nodes():
     (lambda d: d["loads"][0].update(body={"mesh": 4, "node": 0}), "loads[0].body.mesh: 4 is not one of the 1"),
     (lambda d: d["loads"][0].update(body={"mesh": 0, "node": 9}), "loads[0].body.node: 9 is not one of mesh 0's"),
     (lambda d: d["loads"][0].update(body={"mesh": 0}), "loads[0].body.node: missing"),
-    (lambda d: d["connectors"][0].update(body_b={"mesh": 0, "nod": 1}), "connectors[0].body_b.body.nod: unknown"),
+    (lambda d: d["connectors"][0].update(body_b={"mesh": 0, "nod": 1}), "connectors[0].body_b.nod: unknown"),
 ])
 def test_mesh_errors_name_the_key_path(edit, expected):
-    data = copy.deepcopy(MESHED)
-    edit(data)
-    with pytest.raises(SceneError) as err:
-        scene_from_dict(data)
-    assert expected in str(err.value)
+    assert expected in error_of(MESHED, edit)
 
 
 def test_the_documented_example_builds():

@@ -95,7 +95,8 @@ def scene_from_dict(data: Any, source: str = "scene file") -> tuple[Scene, int |
 
 # ------------------------------------------------------------------------------- internals
 def _show(value) -> str:
-    return json.dumps(value, default=repr)[:60]
+    text = json.dumps(value, default=repr)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def _check_keys(path: str, obj: Any, known, required=(), booleans=BOOLEAN_FIELDS) -> dict:
@@ -132,13 +133,26 @@ def _list(path: str, value: Any) -> list:
     return value
 
 
+def _typed(path: str, obj: Any, types: dict):
+    """``obj``'s "type" and its entry in ``types`` (an error naming the path if either is
+    missing or unknown)."""
+    if not isinstance(obj, dict):
+        raise SceneError(f"{path}: must be a table (an object), got {_show(obj)}")
+    kind = obj.get("type")
+    if not isinstance(kind, str) or kind not in types:
+        what = "missing" if kind is None else f"unknown type {_show(kind)}"
+        raise SceneError(f"{path}.type: {what} (known: {', '.join(types)})")
+    return kind, types[kind]
+
+
 def _call(path: str, fn, *args, **kwargs):
     """Call a builder method; its errors (and a stray TypeError/ValueError from a badly
     typed value) are reported under the key path."""
     try:
         return fn(*args, **kwargs)
     except SceneError as err:
-        raise SceneError(f"{path}: {err}") from None
+        message = str(err)  # a builder message that starts with the path already ("scene: ...") keeps one
+        raise SceneError(message if message.startswith(f"{path}: ") else f"{path}: {message}") from None
     except (TypeError, ValueError) as err:
         raise SceneError(f"{path}: invalid value ({err})") from None
 
@@ -169,6 +183,7 @@ class _Reader:
             options["capacities"] = caps
         self.sb = sb = _call("settings", SceneBuilder, settings["dt"], settings.get("gravity", (0.0, -9.81)),
                              name=name, **options)
+        _call("settings", sb._check_settings)
 
         materials = data.get("materials", {})
         if not isinstance(materials, dict):
@@ -204,18 +219,19 @@ class _Reader:
 
         for k, point in enumerate(_list("fixed_points", data.get("fixed_points", []))):
             path = f"fixed_points[{k}]"
-            _check_keys(path, point, POINT_KEYS, ("at",))
-            body, at = self._end(path, point.get("body"), point["at"])
+            _check_keys(path, point, POINT_KEYS, () if isinstance(point, dict) and isinstance(point.get("body"), dict)
+                        else ("at",))
+            body, at = self._end(path, "body", point.get("body"), point.get("at"))
             _call(path, sb.add_fixed_point, body, at)
         for k, load in enumerate(_list("loads", data.get("loads", []))):
             path = f"loads[{k}]"
             _check_keys(path, load, LOAD_KEYS, ("body",) if "at" not in load else ())
-            body, at = self._end(path, load.get("body"), load.get("at"))
+            body, at = self._end(path, "body", load.get("body"), load.get("at"))
             _call(path, sb.add_load, body, **{f: load[f] for f in ("force", "rate", "history") if f in load}, at=at)
         for k, point in enumerate(_list("measured_points", data.get("measured_points", []))):
             path = f"measured_points[{k}]"
             _check_keys(path, point, POINT_KEYS, ("body",) if "at" not in point else ())
-            body, at = self._end(path, point.get("body"), point.get("at"))
+            body, at = self._end(path, "body", point.get("body"), point.get("at"))
             _call(path, sb.add_measured_point, body, at)
         for k, conn in enumerate(_list("connectors", data.get("connectors", []))):
             self._connector(f"connectors[{k}]", conn)
@@ -226,8 +242,7 @@ class _Reader:
         """A body's density, young, poisson, plane: its own, else its material's."""
         mat = fields.get("material")
         if mat is not None and mat not in self.block_materials and mat not in self.sb._materials:
-            known = ", ".join(self.block_materials) or "none"
-            raise SceneError(f"{path}.material: unknown material {mat!r} (known: {known})")
+            raise SceneError(f"{path}.material: unknown material {mat!r} (known: {', '.join(self.sb._materials)})")
         given = {**self.block_materials.get(mat, {}), **{k: fields[k] for k in ELASTIC_KEYS if k in fields}}
         if "density" not in given:
             source = f" (nor does material '{mat}')" if mat else ""
@@ -235,13 +250,7 @@ class _Reader:
         return given
 
     def _body(self, path: str, body: Any) -> None:
-        if not isinstance(body, dict):
-            raise SceneError(f"{path}: must be a table (an object), got {_show(body)}")
-        kind = body.get("type")
-        if not isinstance(kind, str) or kind not in BODY_TYPES:
-            what = "missing" if kind is None else f"unknown type {_show(kind)}"
-            raise SceneError(f"{path}.type: {what} (known: {', '.join(BODY_TYPES)})")
-        method, required, optional = BODY_TYPES[kind]
+        kind, (method, required, optional) = _typed(path, body, BODY_TYPES)
         _check_keys(path, body, ("type",) + required + optional + MOTION_KEYS, required)
         fields = {k: v for k, v in body.items() if k != "type" and k not in ELASTIC_KEYS}
         fields.update(self._elastic(path, body))
@@ -286,6 +295,12 @@ class _Reader:
         for k, line in enumerate(_list(f"{path}.lines", mass.get("lines", []))):
             where = f"{path}.lines[{k}]"
             _check_keys(where, line, LINE_KEYS, ("from", "to"))
+            ends = _call(where, np.asarray, [line["from"], line["to"]], dtype=float)
+            if ends.shape != (2, 2) or not np.isfinite(ends).all():
+                raise SceneError(f"{where}: fields 'from' and 'to' must be finite (x, y) points, got "
+                                 f"{_show(line['from'])} and {_show(line['to'])}")
+            if np.array_equal(ends[0], ends[1]):
+                raise SceneError(f"{where}: zero length (fields 'from' and 'to' are the same point)")
             segments.append([line["from"], line["to"]])
             joints.append(self._joint(f"{where}.joint", line.get("joint", mass.get("joint"))))
         boundary = _call(f"{path}.boundary", np.asarray, mass["boundary"], dtype=float)
@@ -328,35 +343,30 @@ class _Reader:
                   edge_materials=edges, **fields, **elastic, **common)
 
     # -- points, connectors ------------------------------------------------------------
-    def _end(self, path: str, body: Any, at: Any):
-        """A body given by index, by {mesh, node}, or (when absent) as the body that
-        contains the point ``at``; and the point (a node's position by default)."""
+    def _end(self, path: str, field: str, body: Any, at: Any):
+        """The body named by ``field``: an index, {mesh, node}, or (when absent) the body
+        that contains the point ``at``; and the point (a node's position by default)."""
         if isinstance(body, dict):
-            _check_keys(f"{path}.body", body, ("mesh", "node"), ("mesh", "node"))
+            _check_keys(f"{path}.{field}", body, ("mesh", "node"), ("mesh", "node"))
             m, k = body["mesh"], body["node"]
             if isinstance(m, bool) or not isinstance(m, int) or not 0 <= m < len(self.meshes):
-                raise SceneError(f"{path}.body.mesh: {_show(m)} is not one of the {len(self.meshes)} meshed blocks")
+                raise SceneError(f"{path}.{field}.mesh: {_show(m)} is not one of the {len(self.meshes)} meshed blocks")
             mesh = self.meshes[m]
             if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k < len(mesh.nodes):
-                raise SceneError(f"{path}.body.node: {_show(k)} is not one of mesh {m}'s {len(mesh.nodes)} nodes")
+                raise SceneError(f"{path}.{field}.node: {_show(k)} is not one of mesh {m}'s {len(mesh.nodes)} nodes")
             return int(mesh.holder[k]), (mesh.nodes[k].tolist() if at is None else at)
         if body is None:
+            if at is None:
+                raise SceneError(f"{path}.{field}: missing: give the body or the point")
             return _call(path, self.sb.body_at, at), at
         return body, at
 
     def _connector(self, path: str, conn: Any) -> None:
-        if not isinstance(conn, dict):
-            raise SceneError(f"{path}: must be a table (an object), got {_show(conn)}")
-        kind = conn.get("type")
-        if not isinstance(kind, str) or kind not in CONNECTOR_TYPES:
-            what = "missing" if kind is None else f"unknown type {_show(kind)}"
-            raise SceneError(f"{path}.type: {what} (known: {', '.join(CONNECTOR_TYPES)})")
-        method, required, optional = CONNECTOR_TYPES[kind]
-        _check_keys(path, conn, ("type",) + CONNECTOR_ENDS + required + optional, ("at_a", "at_b") + required
-                    if not any(isinstance(conn.get(f), dict) for f in ("body_a", "body_b")) else required)
+        _, (method, required, optional) = _typed(path, conn, CONNECTOR_TYPES)
+        _check_keys(path, conn, ("type",) + CONNECTOR_ENDS + required + optional, required)
         fields = {k: v for k, v in conn.items() if k != "type"}
         for side in ("a", "b"):
-            fields[f"body_{side}"], fields[f"at_{side}"] = self._end(f"{path}.body_{side}", conn.get(f"body_{side}"),
+            fields[f"body_{side}"], fields[f"at_{side}"] = self._end(path, f"body_{side}", conn.get(f"body_{side}"),
                                                                     conn.get(f"at_{side}"))
             if fields[f"at_{side}"] is None:
                 raise SceneError(f"{path}.at_{side}: missing")
