@@ -126,8 +126,12 @@ class SceneBuilder:
         self.dynamic = dynamic
         unknown = sorted(set(capacities or {}) - {f.name for f in dataclasses.fields(Capacities)})
         if unknown:
-            raise SceneError(f"scene: field 'capacities' has unknown buffer '{unknown[0]}' "
+            raise SceneError(f"settings: field 'capacities' has unknown buffer '{unknown[0]}' "
                              f"(known: {', '.join(f.name for f in dataclasses.fields(Capacities))})")
+        for key, value in (capacities or {}).items():
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+                raise SceneError(f"settings: field 'capacities' entry '{key}' must be a positive integer, "
+                                 f"got {value!r}")
         self.capacities = dict(capacities or {})
         self._measured: list[tuple[int, np.ndarray]] = []
         self._fixed_points: list[tuple[int, np.ndarray]] = []
@@ -226,6 +230,8 @@ class SceneBuilder:
         without a body, the DDA way). On the common boundary of two bodies it is ambiguous
         (an error), except between elements of one meshed block (the field is continuous)."""
         p = self._point("point", "at", point)
+        if not self._bodies:
+            raise SceneError(f"the point {tuple(p.tolist())} lies in no body (no bodies were added before it)")
         shapes = [self._world_shape(b) for b in self._bodies]
         tol = 1e-9 * _scene_size(shapes)
         near = [i for i, shape in enumerate(shapes) if validate.point_outside_by(p, shape) <= tol]
@@ -496,32 +502,44 @@ class SceneBuilder:
     def add_meshed_polygon(self, vertices, density, young, poisson=0.0, *, max_edge=None, **kwargs) -> "Mesh":
         """``add_mesh`` of a simple polygon meshed by the built-in mesher (ear clipping,
         then midpoint refinement until no edge is longer than ``max_edge``)."""
-        nodes, triangles = mesh_lib.mesh_polygon(vertices, max_edge)
+        nodes, triangles = mesh_lib.mesh_polygon(vertices, max_edge, label=f"mesh {len(self._meshes)}")
         return self.add_mesh(nodes, triangles, density, young, poisson, **kwargs)
 
     # -- build -------------------------------------------------------------------------
+    def _check_settings(self) -> None:
+        """Raise SceneError (labelled "settings") for a bad dt, gravity, tol, max_iter,
+        dynamic or margin; ``build`` calls it, a scene file's reader before its bodies."""
+        for field in ("dt", "tol", "max_iter", "dynamic", "margin"):
+            value = getattr(self, field)
+            if value is not None:
+                validate.check_finite("settings", field, value)
+                if np.ndim(value) != 0:
+                    raise SceneError(f"settings: field '{field}' must be a number, got {value!r}")
+        validate.check_positive("settings", "dt", self.dt)
+        validate.check_finite("settings", "gravity", self.gravity)
+        if np.shape(self.gravity) != (2,):
+            raise SceneError(f"settings: field 'gravity' must be (gx, gy), got {self.gravity!r}")
+        validate.check_positive("settings", "tol", self.tol)
+        if isinstance(self.max_iter, bool) or self.max_iter < 1 or not float(self.max_iter).is_integer():
+            raise SceneError(f"settings: field 'max_iter' must be a positive integer, got {self.max_iter!r}")
+        if not 0.0 <= self.dynamic <= 1.0:
+            raise SceneError(f"settings: field 'dynamic' must be in [0, 1], got {self.dynamic}")
+        if self.margin is not None and self.margin < 0:
+            raise SceneError(f"settings: field 'margin' must be >= 0, got {self.margin}")
+
     def build(self) -> "Scene":
         """Validate everything and assemble the scene."""
         if not self._bodies:
             raise SceneError("scene: no bodies were added")
-        validate.check_positive("scene", "dt", self.dt)
+        self._check_settings()
         g = np.asarray(self.gravity, float)
-        if g.shape != (2,):
-            raise SceneError(f"scene: field 'gravity' must be (gx, gy), got {self.gravity!r}")
-        validate.check_finite("scene", "gravity", g)
-        validate.check_positive("scene", "tol", self.tol)
-        validate.check_positive("scene", "max_iter", self.max_iter)
-        validate.check_finite("scene", "dynamic", self.dynamic)
-        if not 0.0 <= self.dynamic <= 1.0:
-            raise SceneError(f"scene: field 'dynamic' must be in [0, 1], got {self.dynamic}")
         labels = [_body_label(b, i) for i, b in enumerate(self._bodies)]
         shapes = [self._world_shape(b) for b in self._bodies]
         size = _scene_size(shapes)
         validate.check_no_interpenetration(shapes, labels, tol=1e-9 * size, adjacent=self._adjacent_elements())
-        if self.margin is not None:
-            validate.check_finite("scene", "margin", self.margin)
-            if self.margin < 0:
-                raise SceneError(f"scene: field 'margin' must be >= 0, got {self.margin}")
+        for k, (body, offset, *_) in enumerate(self._loads):  # a point given away from the centroid: on the body
+            if np.any(offset != 0):
+                self._check_on_body(f"load {k}", "at", self._bodies[body].center + offset, body)
         margin = 1e-6 * size if self.margin is None else float(self.margin)
 
         names = list(self._materials)

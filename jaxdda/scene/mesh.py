@@ -72,18 +72,21 @@ def _edge_lengths(nodes, triangles) -> np.ndarray:
     return np.linalg.norm(p - np.roll(p, -1, axis=1), axis=-1)
 
 
-def mesh_polygon(vertices, max_edge: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+def mesh_polygon(vertices, max_edge: float | None = None, *, label: str = "mesh") -> tuple[np.ndarray, np.ndarray]:
     """(nodes (n, 2), triangles (t, 3), counter-clockwise) meshing a simple polygon;
-    with ``max_edge``, refined until no edge is longer."""
-    v = np.asarray(vertices, float)
+    with ``max_edge``, refined until no edge is longer. Errors start with ``label``."""
+    try:
+        v = np.asarray(vertices, float)
+    except (TypeError, ValueError) as err:
+        raise SceneError(f"{label}: field 'vertices' is not a list of (x, y) points ({err})") from None
     problem = geometry.simple_polygon_problem(v)
     if problem is not None:
-        raise SceneError(f"mesh: the polygon is not valid: {problem}")
+        raise SceneError(f"{label}: field 'vertices' is not valid: {problem}")
     v = geometry.counter_clockwise(v)
+    if max_edge is not None and (isinstance(max_edge, bool) or not np.isfinite(max_edge) or max_edge <= 0):
+        raise SceneError(f"{label}: field 'max_edge' must be a positive number, got {max_edge!r}")
     nodes, triangles = v, triangulate(v)
     if max_edge is not None:
-        if not np.isfinite(max_edge) or max_edge <= 0:
-            raise SceneError(f"mesh: field 'max_edge' must be a positive number, got {max_edge!r}")
         nodes, triangles = refine(nodes, triangles, float(max_edge))
     return nodes, triangles
 
