@@ -5,10 +5,11 @@ jax.config.update("jax_enable_x64", True)  # forces of 1e7 N next to errors of 1
 
 from jaxdda import examples
 from jaxdda.calibrate import Calibration, calibrate
+from jaxdda.checkpoint import load_checkpoint, save_checkpoint
 from jaxdda.energy import energy
 from jaxdda.montecarlo import MonteCarlo, monte_carlo
 from jaxdda.observe import Observable
-from jaxdda.errors import CapacityError, SceneError
+from jaxdda.errors import CapacityError, ConvergenceError, SceneError
 from jaxdda.scene.builder import Scene, SceneBuilder
 from jaxdda.scene.io import save_scene
 from jaxdda.scene.loader import load_scene
@@ -16,6 +17,6 @@ from jaxdda.simulate import Trajectory, simulate
 from jaxdda.step import rollout, step
 from jaxdda.types import Model, Params, State, StepInfo
 
-__all__ = ["calibrate", "Calibration", "monte_carlo", "MonteCarlo", "Observable", "SceneBuilder", "Scene", "load_scene", "save_scene", "energy", "simulate", "Trajectory", "step", "rollout", "examples", "Model",
-           "Params", "State", "StepInfo", "SceneError", "CapacityError"]
+__all__ = ["calibrate", "Calibration", "monte_carlo", "MonteCarlo", "Observable", "SceneBuilder", "Scene", "load_scene", "save_scene", "save_checkpoint", "load_checkpoint", "energy", "simulate", "Trajectory", "step", "rollout", "examples", "Model",
+           "Params", "State", "StepInfo", "SceneError", "CapacityError", "ConvergenceError"]
 __version__ = "0.1.0"

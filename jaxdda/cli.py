@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from jaxdda import examples
-from jaxdda.errors import CapacityError, SceneError
+from jaxdda.errors import CapacityError, ConvergenceError, SceneError
 
 
 class _UsageError(Exception):
@@ -49,8 +49,14 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--report", metavar="DIR", help="save pictures of paths, forces, energy and the force network "
                                                    "(needs matplotlib)")
     run.add_argument("--csv", metavar="DIR", help="save measured-point and load-point histories as CSV")
+    run.add_argument("--checkpoint", metavar="FILE.npz", help="save the final state to restart from (--resume)")
+    run.add_argument("--resume", metavar="FILE.npz", help="continue from a checkpoint of this scene (--checkpoint): "
+                                                          "--steps more steps, bit-identical to an unbroken run")
     run.add_argument("--chunk", type=_positive_int, default=2000,
                      help="steps per compiled chunk (default: 2000)")
+    run.add_argument("--on-nonconvergence", choices=("continue", "halve", "raise"), default="continue",
+                     help="a step whose contact solve does not converge: go on and report it (default), run it "
+                          "again as steps of dt/2 (down to dt/16), or stop with an error")
     export = sub.add_parser("export", help="write a built-in example as a scene file",
                             description="Write a built-in example as a TOML (or, for a .json path, JSON) scene "
                                         "file that 'jaxdda run FILE' runs as the example.")
@@ -87,7 +93,7 @@ def main(argv: list[str] | None = None) -> int:
     except (_UsageError, SceneError) as err:
         print(f"jaxdda: error: {err}", file=sys.stderr)
         return 2
-    except CapacityError as err:
+    except (CapacityError, ConvergenceError) as err:
         print(f"jaxdda: simulation failed: {err}", file=sys.stderr)
         return 1
 
@@ -143,6 +149,7 @@ def _check_writable(option: str, target: str | None) -> None:
 
 def _run(args) -> int:
     _check_writable("--out", args.out)
+    _check_writable("--checkpoint", args.checkpoint)
     _check_writable("--plot", args.plot)
     _check_writable("--animate", args.animate)
     for option, folder in (("--vtk", args.vtk), ("--csv", args.csv), ("--report", args.report)):
@@ -162,8 +169,19 @@ def _run(args) -> int:
 
     from jaxdda.simulate import simulate
 
+    first_step = 0
+    if args.resume:
+        from jaxdda.checkpoint import CheckpointError, load_checkpoint
+
+        try:
+            ck = load_checkpoint(args.resume)
+            scene, first_step = ck.scene(scene), ck.step
+        except (CheckpointError, FileNotFoundError) as err:
+            raise _UsageError(f"--resume {args.resume}: {err}") from None
+        print(f"resuming from {args.resume}: step {first_step}, t = {ck.time:.6g} s")
     start = time.perf_counter()
-    traj = simulate(scene, steps, chunk=args.chunk, save_every=args.save_every, progress=False if args.quiet else None)
+    traj = simulate(scene, steps, chunk=args.chunk, save_every=args.save_every, progress=False if args.quiet else None,
+                    on_nonconvergence=args.on_nonconvergence)
     wall = time.perf_counter() - start
     info = traj.info
     converged = np.asarray(traj.step_converged, bool)  # every step run, saved or not
@@ -177,8 +195,16 @@ def _run(args) -> int:
     else:
         print(f"  converged         NO: {int((~converged).sum())} steps did not converge "
               f"(first: step {int(np.argmin(converged)) + 1})")
+    if traj.halvings is not None and traj.halvings.any():
+        print(f"  halved steps      {int(np.count_nonzero(traj.halvings))} (first: step "
+              f"{int(np.argmax(traj.halvings > 0)) + 1}; smallest sub-step dt/{2 ** int(traj.halvings.max())})")
     print(f"  contacts          max {int(np.max(info.n_contacts))}{of}")
     print(f"  penetration       max {float(np.max(info.max_penetration)):.3g}{of}")
+    if args.checkpoint:
+        from jaxdda.checkpoint import save_checkpoint
+
+        save_checkpoint(args.checkpoint, traj, step=first_step + traj.steps)
+        print(f"  wrote {args.checkpoint} (checkpoint at step {first_step + traj.steps})")
     if args.out:
         from jaxdda.export import save_npz
 

@@ -7,13 +7,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxdda.errors import CapacityError
+from jaxdda.errors import CapacityError, ConvergenceError
 from jaxdda.progress import Progress
 from jaxdda.scene.builder import Scene
 from jaxdda.step import step
 from jaxdda.types import Capacities, ContactReport, Model, Params, State, StepInfo
 
 MAX_REGROW = 8
+ON_NONCONVERGENCE = ("continue", "halve", "raise")
 
 
 @dataclasses.dataclass
@@ -39,6 +40,8 @@ class Trajectory:
     saved_steps: np.ndarray | None = None  # (S+1,) the step each index ends (0: the start); None: every step
     step_converged: np.ndarray | None = None  # (steps,) whether each step run converged, saved or not
     params: Params | None = None  # the parameters of the run (default: the scene's)
+    capacity: Capacities | None = None  # buffer capacities at the end (grown where they overflowed)
+    halvings: np.ndarray | None = None  # (steps,) times each step run was halved (on_nonconvergence="halve")
 
     @property
     def steps(self) -> int:
@@ -121,19 +124,29 @@ class Trajectory:
         return from_i_on_j.sum(axis=1)
 
 
-def _run_chunk(model: Model, state: State, params: Params, n_valid, length: int):
+def _run_chunk(model: Model, state: State, params: Params, n_valid, length: int, stop=False):
     """Scan ``length`` steps; steps at index >= n_valid are skipped (state unchanged,
-    zero info), so every run of a scene shares one compilation whatever its length."""
+    zero info), so every run of a scene shares one compilation whatever its length.
+
+    ``stop`` (a traced bool: pass it always, so that every call shares the program):
+    at the first step whose contact solve does not converge, the chunk keeps the state
+    from before that step and skips the rest (that step's info is still returned)."""
     info_shape = jax.eval_shape(step, model, state, params)[1]
 
     def skip(s):
         return s, jax.tree.map(lambda x: jnp.zeros(x.shape, x.dtype), info_shape)
 
-    def body(s, k):
-        s2, info = jax.lax.cond(k < n_valid, lambda s: step(model, s, params), skip, s)
-        return s2, (s2.time, s2.centroid, s2.rotation, s2.velocity[:, :3], s2.stress, s2.stretch, info)
+    def body(carry, k):
+        s, halted = carry
+        run = (k < n_valid) & ~halted
+        s2, info = jax.lax.cond(run, lambda s: step(model, s, params), skip, s)
+        failed = run & stop & ~info.converged
+        kept = jax.tree.map(lambda old, new: jnp.where(failed, old, new), s, s2)
+        return (kept, halted | failed), (s2.time, s2.centroid, s2.rotation, s2.velocity[:, :3], s2.stress, s2.stretch,
+                                         info)
 
-    return jax.lax.scan(body, state, jnp.arange(length))
+    (end, _), out = jax.lax.scan(body, (state, jnp.asarray(False)), jnp.arange(length))
+    return end, out
 
 
 _run_chunk_jit = jax.jit(_run_chunk, static_argnames=("length",))
@@ -154,50 +167,170 @@ def with_capacity(model: Model, state: State, capacity: Capacities) -> tuple[Mod
 
 
 def simulate(scene: Scene, steps: int, *, params: Params | None = None, chunk: int = 1000, save_every: int = 1,
-             progress: bool | None = None) -> Trajectory:
+             progress: bool | None = None, state: State | None = None, on_nonconvergence: str = "continue",
+             max_halvings: int = 4) -> Trajectory:
     """Run ``steps`` (>= 1) steps of ``scene`` and return the trajectory.
 
     Runs in jit-compiled chunks of ``chunk`` steps (one compilation per scene and chunk
     length, whatever ``steps``; the unused tail of the last chunk is skipped). When
-    a buffer overflows in a chunk, its capacity is grown from the counts the step
-    reported and the chunk is run again from its start, so no contact is ever lost.
+    a buffer overflows, its capacity is grown from the counts its first overflowing step
+    reported and the run goes on from that step, so no contact is ever lost and the
+    results do not depend on where chunks begin (restarts are bit-identical).
     Raises CapacityError if that does not settle within a few regrowths.
+
+    ``state``: start from it instead of ``scene.state`` (a ``final_state``, or a
+    checkpoint's: ``jaxdda.checkpoint``); time goes on from ``state.time``. Its contact
+    memory is re-padded to the scene's contact capacity where they differ; a checkpoint's
+    ``scene()`` carries the capacities its run had grown, for a bit-identical continuation.
 
     ``save_every=k`` keeps the state and step diagnostics of every k-th step only (and
     the last), so memory stays flat on long runs (``Trajectory.saved_steps`` numbers
     them). ``progress`` shows a bar with steps per second and the chunk's largest
     solver iteration count (None: when the run takes more than one chunk).
+
+    ``on_nonconvergence`` says what a step whose contact solve misses its tolerance within
+    ``max_iter`` (``StepInfo.converged`` False) does to the run:
+
+    * ``"continue"`` (default): the run goes on with that step's best iterate; the step
+      is reported in ``step_converged`` (and ``info.converged``, ``info.residual``).
+    * ``"raise"``: stop with a ConvergenceError naming the step, its time, residual and
+      iterations.
+    * ``"halve"``: run that step again as two steps of dt / 2 (as DDA codes do), each
+      halved again where it does not converge, to ``max_halvings`` halvings (dt / 2^k),
+      then raise ConvergenceError; the run goes on at dt after it. The trajectory keeps
+      one entry per step of dt (its end; its info that of the last sub-step, iterations
+      summed, residual and penetration the worst), and ``Trajectory.halvings`` says how
+      many times each step was halved (0: not). A non-converged step costs a rerun of
+      the chunk from it (see docs/design.md, "Non-convergence").
     """
     for name, value in (("steps", steps), ("chunk", chunk), ("save_every", save_every)):
         if isinstance(value, bool) or int(value) != value or value < 1:
             raise ValueError(f"{name} must be a positive integer, got {value!r}")
+    if on_nonconvergence not in ON_NONCONVERGENCE:
+        raise ValueError(f"on_nonconvergence must be one of {', '.join(map(repr, ON_NONCONVERGENCE))}, "
+                         f"got {on_nonconvergence!r}")
+    if isinstance(max_halvings, bool) or int(max_halvings) != max_halvings or max_halvings < 0:
+        raise ValueError(f"max_halvings must be a non-negative integer, got {max_halvings!r}")
+    stop = on_nonconvergence != "continue"
     params = scene.params if params is None else params
-    model, state = scene.model, scene.state
+    model, state = scene.model, (scene.state if state is None else state)
+    if state.contact_key.shape[-1] != model.capacity.contacts:
+        model, state = with_capacity(model, state, dataclasses.replace(
+            model.capacity, contacts=max(model.capacity.contacts, state.contact_key.shape[-1])))
+    start = state
     length = int(chunk)
-    pieces, saved, converged, done = [], [np.zeros(1, np.int64)], [], 0
+    pieces, saved, converged, halvings, done = [], [np.zeros(1, np.int64)], [], [], 0
     bar = Progress(int(steps), "steps", steps > length if progress is None else bool(progress))
     while done < steps:
-        n_valid = min(length, steps - done)
-        for _ in range(MAX_REGROW):
-            end, out = _run_chunk_jit(model, state, params, n_valid, length=length)
-            info = out[-1]
-            if not bool(np.any(np.asarray(info.overflow)[:n_valid])):
-                break
-            needed = Capacities(*np.asarray(info.needed)[:n_valid].max(0).tolist())
-            model, state = with_capacity(model, state, model.capacity.grown(needed))
-        else:
-            raise CapacityError(f"contact buffers kept overflowing after {MAX_REGROW} regrowths "
-                                f"(capacity {model.capacity})")
-        number = done + 1 + np.arange(n_valid)
+        model, state, end, out, n_valid, grown = _run_grown(model, state, params, min(length, steps - done), length,
+                                                            stop)
+        info = out[-1]
+        ok = np.asarray(info.converged)[:n_valid]
+        failed = stop and not ok.all()
+        n_ok = int(np.argmin(ok)) if failed else n_valid  # with stop: the steps before the first failure
+        number = done + 1 + np.arange(n_ok)
         keep = np.flatnonzero((number % save_every == 0) | (number == steps))
         pieces.append(jax.tree.map(lambda x: np.asarray(x)[keep], out))
         saved.append(number[keep])
-        converged.append(np.asarray(info.converged)[:n_valid])
-        bar.update(n_valid, iterations=int(np.asarray(info.iterations)[:n_valid].max()))
-        state, done = end, done + n_valid
+        converged.append(ok[:n_ok])
+        halvings.append(np.zeros(n_ok, np.int64))
+        bar.update(n_ok, iterations=int(np.asarray(info.iterations)[:n_valid].max()))
+        state, done = end, done + n_ok
+        if grown is not None:
+            model, state = with_capacity(model, state, grown)
+        if failed:  # step done + 1 did not converge; ``state`` is from before it
+            if on_nonconvergence == "raise" or max_halvings < 1:
+                raise _convergence_error(info, n_ok, done + 1, state, params, 0)
+            model, state, row, depth = _subdivide(model, state, params, length, 1, max_halvings, done + 1)
+            done += 1
+            if done % save_every == 0 or done == steps:
+                pieces.append(jax.tree.map(lambda x: np.asarray(x)[None], row))
+                saved.append(np.array([done]))
+            converged.append(np.ones(1, bool))
+            halvings.append(np.array([depth]))
+            bar.update(1, iterations=int(row[-1].iterations))
     bar.close()
-    return dataclasses.replace(_assemble(scene, pieces, state), saved_steps=np.concatenate(saved),
-                               step_converged=np.concatenate(converged), params=params)
+    return dataclasses.replace(_assemble(scene, pieces, state, start), saved_steps=np.concatenate(saved),
+                               step_converged=np.concatenate(converged), params=params, capacity=model.capacity,
+                               halvings=np.concatenate(halvings))
+
+
+def _run_grown(model, state, params, n_valid, length, stop):
+    """One chunk of up to ``n_valid`` steps with its buffers regrown where they overflow.
+
+    Returns (model, state, end, out, steps run, capacities to grow to after them or None)."""
+    grown = None
+    for _ in range(MAX_REGROW):
+        end, out = _run_chunk_jit(model, state, params, n_valid, length=length, stop=bool(stop))
+        info = out[-1]
+        overflow = np.asarray(info.overflow)[:n_valid]
+        if not overflow.any():
+            return model, state, end, out, n_valid, grown
+        # Only the first overflowing step's counts come from a correct state. Growing from
+        # them at that step (the capacities change the last bits of the results) makes the
+        # run independent of where chunks begin: the steps before it are kept (run again
+        # alone: the same program, the same bits), the rest run with the new capacities.
+        first = int(np.argmax(overflow))
+        grown = model.capacity.grown(Capacities(*np.asarray(info.needed)[first].tolist()))
+        if first > 0:
+            n_valid = first
+            continue
+        model, state = with_capacity(model, state, grown)
+        grown = None
+    raise CapacityError(f"contact buffers kept overflowing after {MAX_REGROW} regrowths "
+                        f"(capacity {model.capacity})")
+
+
+def _subdivide(model, state, params, length, depth, limit, number):
+    """Step ``number`` (which did not converge at ``params.dt``) run again from ``state``
+    as two steps of ``params.dt / 2``, each halved again where it does not converge, to
+    ``limit`` halvings in all. Returns (model, the state at the step's end, its output row
+    (``_merge``), the halvings its smallest sub-step took)."""
+    half = dataclasses.replace(params, dt=params.dt / 2)
+    rows, deepest, left = [], depth, 2
+    while left:
+        model, state, end, out, n_run, grown = _run_grown(model, state, half, left, length, True)
+        ok = np.asarray(out[-1].converged)[:n_run]
+        n_ok = n_run if ok.all() else int(np.argmin(ok))
+        rows += [jax.tree.map(lambda x: np.asarray(x)[k], out) for k in range(n_ok)]
+        state, left = end, left - n_ok
+        if grown is not None:
+            model, state = with_capacity(model, state, grown)
+        if n_ok < n_run:  # this sub-step did not converge either
+            if depth >= limit:
+                raise _convergence_error(out[-1], n_ok, number, state, half, depth)
+            model, state, row, sub = _subdivide(model, state, half, length, depth + 1, limit, number)
+            rows.append(row)
+            deepest, left = max(deepest, sub), left - 1
+    return model, state, _merge(rows), deepest
+
+
+def _merge(rows):
+    """The output row of a step run as sub-steps: the state and info at its end (the last
+    sub-step's, with its contact report), iterations summed over the sub-steps, residual,
+    penetration and buffer counts their worst."""
+    infos = [r[-1] for r in rows]
+    last = infos[-1]
+    info = dataclasses.replace(
+        last, iterations=np.sum([i.iterations for i in infos]).astype(last.iterations.dtype),
+        residual=np.max([i.residual for i in infos]), converged=np.all([i.converged for i in infos]),
+        overflow=np.any([i.overflow for i in infos]), needed=np.max([i.needed for i in infos], 0),
+        max_penetration=np.max([i.max_penetration for i in infos]))
+    return rows[-1][:-1] + (info,)
+
+
+def _convergence_error(info, k: int, number: int, state: State, params: Params, halvings: int) -> ConvergenceError:
+    """The error for step ``number`` whose solve (row ``k`` of a chunk's ``info``) did not
+    converge, run from ``state`` at ``params.dt`` (``halvings`` times halved)."""
+    residual, iterations = float(np.asarray(info.residual)[k]), int(np.asarray(info.iterations)[k])
+    t, dt = float(np.asarray(state.time)), float(np.asarray(params.dt))
+    how = "" if halvings == 0 else f" even at dt / {2 ** halvings} = {dt:.6g} s (max_halvings = {halvings})"
+    return ConvergenceError(
+        f"the contact solve of step {number} (from t = {t:.6g} s) did not converge{how}: relative residual "
+        f"{residual:.3g} > tol {float(np.asarray(params.tol)):.3g} after {iterations} iterations (max_iter "
+        f"{int(np.asarray(params.max_iter))} per solve, impact and contact). Raise max_iter or tol, reduce dt, or "
+        f"run with on_nonconvergence=\"halve\" (or \"continue\" to go on and report it)",
+        step=number, time=t, dt=dt, residual=residual, iterations=iterations)
 
 
 def _pad_contacts(report: ContactReport, width: int) -> ContactReport:
@@ -211,8 +344,7 @@ def _pad_contacts(report: ContactReport, width: int) -> ContactReport:
     return jax.tree.map(pad, report)
 
 
-def _assemble(scene: Scene, pieces, final_state: State) -> Trajectory:
-    s0 = scene.state
+def _assemble(scene: Scene, pieces, final_state: State, s0: State) -> Trajectory:
     first = (np.asarray(s0.time)[None], np.asarray(s0.centroid)[None], np.asarray(s0.rotation)[None],
              np.asarray(s0.velocity)[None, :, :3], np.asarray(s0.stress)[None], np.asarray(s0.stretch)[None])
     k_info = len(first)

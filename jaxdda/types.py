@@ -32,11 +32,23 @@ class Capacities:
     contacts: int  # contacts after the narrow phase
 
     def grown(self, needed: "Capacities") -> "Capacities":
-        """Capacities large enough for ``needed`` with head-room (x1.5, at least x2 of a full one)."""
-        def grow(cap: int, need: int) -> int:
+        """Capacities large enough for ``needed`` with head-room (x1.5, at least x2 of a full one).
+
+        A buffer counts only what the buffers before it kept (candidates -> pairs ->
+        contacts): behind one that overflowed by a factor f its count is scaled by f, so
+        that one regrowth usually suffices (each one costs a compilation)."""
+        def grow(cap: int, need: float) -> int:
             return cap if need <= cap else max(2 * cap, int(need * 1.5) + 1)
 
-        return Capacities(*(grow(c, n) for c, n in zip(dataclasses.astuple(self), dataclasses.astuple(needed))))
+        def lost(cap: int, need: int) -> float:  # the factor by which a buffer fell short
+            return need / cap if need > cap > 0 else 1.0
+
+        f_cand = lost(self.candidates, needed.candidates)
+        caps, needs = (self.pairs_pp, self.pairs_pb, self.pairs_bb), (needed.pairs_pp, needed.pairs_pb, needed.pairs_bb)
+        pairs = [grow(c, min(n * f_cand, needed.candidates)) for c, n in zip(caps, needs)]
+        f_pairs = max(lost(c, n) for c, n in zip(caps, needs))
+        return Capacities(grow(self.candidates, needed.candidates), *pairs,
+                          grow(self.contacts, needed.contacts * f_cand * f_pairs))
 
 
 @pytree_dataclass

@@ -85,7 +85,13 @@ def test_a_scenario_matches_a_single_run(incline, sliding):
 def test_undersized_buffers_are_regrown_to_the_same_result(incline, sliding):
     model, state = with_capacity(incline.model, incline.state, Capacities(1, 1, 1, 1, 1))
     small = _incline_run(dataclasses.replace(incline, model=model, state=state))
-    np.testing.assert_array_equal(small.trajectory["centroid"], sliding.trajectory["centroid"])
+    # bit for bit: every kept pose, observable and solver diagnostic
+    for name in ("centroid", "rotation", "velocity"):
+        np.testing.assert_array_equal(small.trajectory[name], sliding.trajectory[name], err_msg=name)
+    for name in sliding.observables:
+        np.testing.assert_array_equal(small[name], sliding[name], err_msg=name)
+    for name in ("converged", "iterations", "residual", "max_penetration"):
+        np.testing.assert_array_equal(getattr(small, name), getattr(sliding, name), err_msg=name)
 
 
 def test_batched_params_give_the_same_runs(incline, sliding):

@@ -1,0 +1,91 @@
+"""Non-convergence of the contact solve: reported per step, and by the user's choice the
+driver halves the time step for that step or stops with a clear error (issue 9, item 2).
+
+The scene is hard on purpose: a block thrown at 20 m/s onto a two-block stack, all with
+friction 0.5 and no restitution. At dt = 0.01 the contact solve of step 2 (the impact
+travelling through the stack) misses its tolerance within the default 5000 iterations
+(the frictional QVI has a residual floor there); at dt / 2 and below it converges. All runs
+share one compiled chunk (the same scene, capacities and chunk length; dt is a traced
+parameter).
+"""
+import dataclasses
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxdda
+from jaxdda.errors import ConvergenceError
+
+STEPS, CHUNK = 30, 30
+
+
+def thrown_block():
+    sb = jaxdda.SceneBuilder(dt=0.01, gravity=(0.0, -10.0))
+    sb.add_material("rock", friction=0.5, restitution=0.0)
+    sb.add_polygon(vertices=[(-3, -1), (3, -1), (3, 0), (-3, 0)], density=1.0, fixed=True, material="rock")
+    sb.add_polygon(vertices=[(-1, 0), (1, 0), (1, 1), (-1, 1)], density=1.0, material="rock")
+    sb.add_polygon(vertices=[(-0.95, 1), (1.05, 1), (1.05, 2), (-0.95, 2)], density=1.0, material="rock")
+    sb.add_polygon(vertices=[(-0.7, 2.3), (0.7, 2.3), (0.7, 3.3), (-0.7, 3.3)], density=10.0, velocity=(0.0, -20.0),
+                   material="rock")
+    return sb.build()
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return thrown_block()
+
+
+@pytest.fixture(scope="module")
+def reported(scene):
+    return jaxdda.simulate(scene, STEPS, chunk=CHUNK)
+
+
+@pytest.fixture(scope="module")
+def halved(scene):
+    return jaxdda.simulate(scene, STEPS, chunk=CHUNK, on_nonconvergence="halve")
+
+
+def test_continue_reports_the_steps_that_did_not_converge(reported):
+    assert not reported.step_converged[1] and reported.step_converged[0]
+    np.testing.assert_array_equal(reported.step_converged, reported.info.converged)
+    assert reported.info.residual[1] > float(reported.params.tol)
+    assert not reported.halvings.any()
+
+
+def test_raise_names_the_step(scene, reported):
+    with pytest.raises(ConvergenceError, match=r"step 2 \(from t = 0\.01 s\) did not converge") as err:
+        jaxdda.simulate(scene, STEPS, chunk=CHUNK, on_nonconvergence="raise")
+    e = err.value
+    assert (e.step, e.time, e.dt, e.iterations) == (2, 0.01, 0.01, int(reported.info.iterations[1]))
+    assert e.residual == reported.info.residual[1] > 1e-12
+    with pytest.raises(ConvergenceError, match=r"step 2 .* even at dt / 2 = 0\.005 s"):
+        jaxdda.simulate(scene, STEPS, chunk=CHUNK, on_nonconvergence="halve", max_halvings=1)
+
+
+def test_halve_converges_every_step_as_runs_at_dt_over_2(scene, reported, halved):
+    assert halved.step_converged.all() and halved.info.converged.all()
+    assert halved.halvings[1] >= 1 and halved.halvings.sum() == halved.halvings[1]
+    # one entry per step of dt: the same times as the reported run (to round-off)
+    np.testing.assert_allclose(halved.time, reported.time, rtol=0, atol=1e-15)
+    # the step before the failure is the reported run's, bit for bit
+    np.testing.assert_array_equal(halved.centroid[:2], reported.centroid[:2])
+    # halving step 2 is running it as two steps of dt / 2 (halved again where they fail),
+    # then going on at dt: the composition of those runs gives the same bits
+    one = jaxdda.simulate(scene, 1, chunk=CHUNK)
+    half = dataclasses.replace(scene.params, dt=scene.params.dt / 2)
+    two = jaxdda.simulate(scene, 2, chunk=CHUNK, params=half, state=one.final_state, on_nonconvergence="halve",
+                          max_halvings=3)
+    assert two.step_converged.all() and two.halvings.max() == halved.halvings[1] - 1
+    rest = jaxdda.simulate(scene, STEPS - 2, chunk=CHUNK, state=two.final_state, on_nonconvergence="halve")
+    np.testing.assert_array_equal(rest.centroid[-1], halved.centroid[-1])
+    np.testing.assert_array_equal(rest.velocity[-1], halved.velocity[-1])
+    # physically: the converged impact leaves no overlap, the unconverged one does
+    assert halved.info.max_penetration.max() < 1e-10 < reported.info.max_penetration.max()
+
+
+def test_bad_options_are_named(scene):
+    with pytest.raises(ValueError, match="on_nonconvergence must be one of"):
+        jaxdda.simulate(scene, 1, on_nonconvergence="retry")
+    with pytest.raises(ValueError, match="max_halvings must be"):
+        jaxdda.simulate(scene, 1, on_nonconvergence="halve", max_halvings=-1)
