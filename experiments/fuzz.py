@@ -46,7 +46,7 @@ def kind_of(message: str) -> str:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scene-steps", type=int, default=1_000_000)
-    ap.add_argument("--batch", type=int, default=fz.BATCH)
+    ap.add_argument("--batch", type=int, default=32)
     ap.add_argument("--steps", type=int, default=fz.STEPS)
     ap.add_argument("--start", type=int, default=0, help="seed of the first scene")
     ap.add_argument("--sample", type=int, default=25, help="host overlap check every this many steps")

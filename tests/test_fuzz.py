@@ -430,7 +430,7 @@ def reproducer(scene, steps: int, folder) -> Path:
 
 
 # ----------------------------------------------------------------------------- tests
-BATCH, STEPS, SAMPLE = 32, 50, 25  # SAMPLE: poses checked on the host every this many steps
+BATCH, STEPS, SAMPLE = 16, 50, 25  # SAMPLE: poses checked on the host every this many steps
 
 
 @settings(max_examples=1, derandomize=True, deadline=None, database=None, phases=[Phase.explicit, Phase.generate],
