@@ -192,9 +192,7 @@ class SceneBuilder:
         held at its first and last values outside them (a step: two rows at one time).
         Returns the load index."""
         label = f"load {len(self._loads)}"
-        if isinstance(body, bool) or not isinstance(body, (int, np.integer)) or not 0 <= body < len(self._bodies):
-            raise SceneError(f"{label}: field 'body' must be the index of an added body, got {body!r}")
-        b = self._bodies[body]
+        b = self._body_of(label, body)
         point = b.center if at is None else self._point(label, "at", at)
         rows = np.zeros((1, 3))
         if history is not None:
@@ -558,8 +556,7 @@ class SceneBuilder:
             for k, m in enumerate(b.edge_materials or []):
                 edge_material[i, k] = -1 if m is None else names.index(m)
         kinds = np.array([b.kind for b in self._bodies], np.int32)
-        bound = np.array([b.radius if b.kind != POLYGON else np.max(np.linalg.norm(b.local, axis=1))
-                          for b in self._bodies])
+        bound = np.array([_body_size(b) for b in self._bodies])
         fixed = np.array([b.fixed for b in self._bodies], bool)
         centers = np.array([b.center for b in self._bodies])
         velocity = np.zeros((n, NDOF))
@@ -621,15 +618,16 @@ class SceneBuilder:
                      recipe=(copy.deepcopy(settings), tuple(self._recipe)), measured=tuple(self._measured))
 
     # -- helpers -----------------------------------------------------------------------
-    def _body_of(self, label: str, body) -> "_Body":
+    def _body_of(self, label: str, body, field: str = "body") -> "_Body":
+        """The added body that index ``body`` names (an error naming ``field`` otherwise)."""
         if isinstance(body, bool) or not isinstance(body, (int, np.integer)) or not 0 <= body < len(self._bodies):
-            raise SceneError(f"{label}: field 'body' must be the index of an added body, got {body!r}")
+            raise SceneError(f"{label}: field '{field}' must be the index of an added body, got {body!r}")
         return self._bodies[body]
 
     def _check_on_body(self, label: str, field: str, point: np.ndarray, body: int) -> None:
         """``point`` must lie in or on ``body`` (to round-off of its size)."""
         b = self._bodies[body]
-        size = b.radius if b.kind != POLYGON else float(np.max(np.linalg.norm(b.local, axis=1)))
+        size = _body_size(b)
         outside = validate.point_outside_by(point, self._world_shape(b))
         if outside > 1e-9 * size:
             raise SceneError(f"{label}: field '{field}' {tuple(point.tolist())} lies {outside:.3g} m outside "
@@ -646,9 +644,7 @@ class SceneBuilder:
         """Validate a connector's bodies, points and numbers, and keep it."""
         label = conn.label
         for field in ("body_a", "body_b"):
-            body = getattr(conn, field)
-            if isinstance(body, bool) or not isinstance(body, (int, np.integer)) or not 0 <= body < len(self._bodies):
-                raise SceneError(f"{label}: field '{field}' must be the index of an added body, got {body!r}")
+            self._body_of(label, getattr(conn, field), field)
         if conn.body_a == conn.body_b:
             raise SceneError(f"{label}: fields 'body_a' and 'body_b' name the same body {conn.body_a}")
         conn.at_a, conn.at_b = self._point(label, "at_a", conn.at_a), self._point(label, "at_b", conn.at_b)
@@ -857,6 +853,7 @@ def _check_contact_law(label: str, law: dict) -> None:
 
 
 def _body_size(b: _Body) -> float:
+    """The largest distance from the centroid to the boundary (the bound radius)."""
     return b.radius if b.kind != POLYGON else float(np.max(np.linalg.norm(b.local, axis=1)))
 
 
