@@ -1,5 +1,14 @@
 """jaxdda: differentiable 2D discontinuous deformation analysis (PB-DDA) in JAX."""
-import jax
+import os
+
+# Bit-identical results from run to run: XLA:CPU's multi-threaded Eigen kernels sum in an
+# order that depends on the load of the machine (last bits: 1e-19 m, 1e-11 Pa), so they
+# are turned off unless the user set the flag (no measurable cost: the engine's products
+# are small). XLA reads it when jax starts its backend, i.e. at the first computation.
+if "xla_cpu_multi_thread_eigen" not in os.environ.get("XLA_FLAGS", ""):
+    os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} --xla_cpu_multi_thread_eigen=false".strip()
+
+import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)  # forces of 1e7 N next to errors of 1e-3 N
 

@@ -19,9 +19,9 @@ checkpoint's model (``ck.scene()``, or ``ck.scene(scene)`` to keep a scene's lab
 recipe) are the buffer capacities those the first run had grown, and the continuation
 bit-identical (the capacities change the last bits of a step's results).
 
-On CPU, bit-identical results across processes need ``XLA_FLAGS=--xla_cpu_multi_thread_eigen=false``
-set before jax starts (multi-threaded kernels vary in the last bits on a busy machine;
-docs/design.md, "Checkpoints, restarts and determinism").
+On CPU, bit-identical results across processes need ``--xla_cpu_multi_thread_eigen=false``
+in ``XLA_FLAGS`` when jax starts, which ``import jaxdda`` adds (multi-threaded kernels vary
+in the last bits on a busy machine; docs/design.md, "Checkpoints, restarts and determinism").
 """
 from __future__ import annotations
 

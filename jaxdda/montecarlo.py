@@ -26,6 +26,7 @@ from jaxdda.errors import CapacityError
 from jaxdda.progress import Progress
 from jaxdda.scene.builder import Scene
 from jaxdda.scene.padding import stack_scenes
+from jaxdda.scene.validate import check_params
 from jaxdda.simulate import MAX_REGROW, with_capacity
 from jaxdda.step import step
 from jaxdda.types import Capacities, Params
@@ -117,6 +118,7 @@ def monte_carlo(scene: Scene | Sequence[Scene], steps: int, *, velocity=None, bo
         raise ValueError("params items name materials: the scenes must have the same materials, in the same order")
     state = _with_velocity(state, velocity, body, scenes[0], np.asarray(model.fixed))
     params = _with_params(base, params, scenes[0], b)
+    check_params(params)
 
     devices = list(jax.local_devices() if devices is None else devices)
     per_device = batch_size or max(1, BATCH_BUDGET // (model.n_bodies + model.capacity.contacts))

@@ -10,6 +10,7 @@ import numpy as np
 from jaxdda.errors import CapacityError, ConvergenceError
 from jaxdda.progress import Progress
 from jaxdda.scene.builder import Scene
+from jaxdda.scene.validate import check_params
 from jaxdda.step import step
 from jaxdda.types import Capacities, ContactReport, Model, Params, State, StepInfo
 
@@ -213,6 +214,7 @@ def simulate(scene: Scene, steps: int, *, params: Params | None = None, chunk: i
         raise ValueError(f"max_halvings must be a non-negative integer, got {max_halvings!r}")
     stop = on_nonconvergence != "continue"
     params = scene.params if params is None else params
+    check_params(params)
     model, state = scene.model, (scene.state if state is None else state)
     if state.contact_key.shape[-1] != model.capacity.contacts:
         model, state = with_capacity(model, state, dataclasses.replace(

@@ -113,6 +113,12 @@ def simulate_scene():
     return sb0().build()
 
 
+def _params(**change):
+    """The base scene's params with fields changed: {field: old value -> new value}."""
+    p = simulate_scene().params
+    return dataclasses.replace(p, **{k: f(getattr(p, k)) for k, f in change.items()})
+
+
 # ------------------------------------------------------------------------------ the catalogue
 @dataclasses.dataclass(frozen=True)
 class Case:
@@ -489,6 +495,15 @@ CASES = [
       error=ValueError),
     C("simulate-steps-fraction", "simulate(scene, 2.5)",
       lambda: jaxdda.simulate(simulate_scene(), 2.5), ("steps", "positive integer"), error=ValueError),
+    C("simulate-params-nan", "simulate(scene, 10, params=...) with a NaN in the friction table",
+      lambda: jaxdda.simulate(simulate_scene(), 10, params=_params(friction=lambda f: f.at[0, 0].set(NAN))),
+      ("params", "'friction'", "entry (0, 0)", "not finite"), error=ValueError),
+    C("simulate-params-dt-negative", "simulate(scene, 10, params=...) with dt = -1e-3",
+      lambda: jaxdda.simulate(simulate_scene(), 10, params=_params(dt=lambda v: -v)), ("params", "'dt'", "> 0"),
+      error=ValueError),
+    C("simulate-params-restitution", "simulate(scene, 10, params=...) with a restitution of 1.5",
+      lambda: jaxdda.simulate(simulate_scene(), 10, params=_params(restitution=lambda r: r + 0.5)),
+      ("params", "'restitution'", "in [0, 1]"), error=ValueError),
     C("monte-carlo-params-nan", "monte_carlo with a NaN friction in scenario 1",
       lambda: jaxdda.monte_carlo(simulate_scene(), 10, params={"friction": [0.3, NAN]}, progress=False),
       ("params['friction']", "scenario 1", "not finite"), error=ValueError),

@@ -69,10 +69,9 @@ def digest(traj) -> str:
 
 
 # XLA CPU's multi-threaded Eigen kernels give different last bits from one run to another
-# when the machine is busy (seen here: 1e-19 m, 1e-11 Pa); single-threaded, they do not
-# (docs/design.md, "Checkpoints, restarts and determinism"). The flag must be set before jax
-# starts, so the runs happen in fresh processes that set it.
-FLAGS = "--xla_cpu_multi_thread_eigen=false"
+# when the machine is busy (seen here: 1e-19 m, 1e-11 Pa); single-threaded, they do not, and
+# importing jaxdda turns them off (docs/design.md, "Checkpoints, restarts and determinism").
+# So the runs happen in fresh processes with XLA_FLAGS as a user has them: unset.
 
 
 def worker(folder: str, full: bool) -> None:
@@ -105,7 +104,7 @@ def runs(tmp_path_factory):
     import json
 
     folders = [tmp_path_factory.mktemp(name) for name in ("full", "second")]
-    env = {**os.environ, "PYTHONPATH": str(ROOT), "XLA_FLAGS": f"{os.environ.get('XLA_FLAGS', '')} {FLAGS}".strip()}
+    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"} | {"PYTHONPATH": str(ROOT)}
     procs = [subprocess.Popen([sys.executable, "-c", f"from tests.test_checkpoint import worker; "
                                                      f"worker({str(folder)!r}, {full})"],
                               cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)

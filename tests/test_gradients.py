@@ -31,9 +31,16 @@ class Case:
             end, (_, infos) = jaxdda.rollout(scene.model, state, params, steps)
             return observe(end, infos) + jnp.where(jnp.any(infos.overflow), jnp.nan, 0.0)
 
-        self.grad = jax.jit(jax.grad(f))
+        # One compiled program gives both the value and the gradient (each costs ~40 s to
+        # compile); the finite differences call it too.
+        self.value_and_grad = jax.jit(jax.value_and_grad(f))
         self.jvp = jax.jit(lambda t, v: jax.jvp(f, (t,), (v,))) if forward else None
-        self.value = (lambda t: self.jvp(t, jax.tree.map(jnp.zeros_like, t))[0]) if forward else jax.jit(f)
+
+    def value(self, theta):
+        return self.value_and_grad(theta)[0]
+
+    def grad(self, theta):
+        return self.value_and_grad(theta)[1]
 
     def __call__(self, theta):
         value = float(self.value(_floats(theta)))

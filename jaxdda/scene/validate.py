@@ -6,6 +6,9 @@ radii) and ``("polygon", vertices)`` ((n, 2), simple, possibly concave).
 """
 from __future__ import annotations
 
+import dataclasses
+
+import jax
 import numpy as np
 
 from jaxdda.errors import SceneError
@@ -219,3 +222,35 @@ def check_no_interpenetration(shapes: list, labels: list[str], tol: float, adjac
                 raise SceneError(
                     f"{labels[i]} and {labels[j]} interpenetrate at the start (overlap {depth:.3g})"
                 )
+
+
+# Params fields and the range of their values (names of the run's parameters, for errors).
+_PARAM_RANGES = {
+    "dt": (0.0, False), "tol": (0.0, False), "max_iter": (1.0, True), "density": (0.0, False),
+    "young": (0.0, True), "friction": (0.0, True), "restitution": (0.0, True), "cohesion": (0.0, True),
+    "rolling": (0.0, True), "tensile": (0.0, True), "margin": (0.0, True), "rupture_width": (0.0, True),
+    "connector_axial": (0.0, True), "connector_bending": (0.0, True), "connector_shear": (0.0, True),
+}
+
+
+def check_params(params, where: str = "params") -> None:
+    """Raise SceneError naming the field and entry of ``params`` (a Params, possibly with a
+    leading batch axis) that is NaN or inf, or out of its range (dt, tol > 0; restitution
+    in [0, 1]; strengths, moduli and stiffnesses >= 0; ...). Traced values are skipped."""
+    for f in dataclasses.fields(params):
+        value = getattr(params, f.name)
+        if isinstance(value, jax.core.Tracer):
+            continue
+        arr = np.asarray(value)
+        if arr.dtype.kind not in "iuf":
+            continue
+        check_finite(where, f.name, arr)
+        lo, closed = _PARAM_RANGES.get(f.name, (-np.inf, True))
+        bad = np.argwhere((arr < lo) if closed else (arr <= lo))
+        if f.name == "restitution":
+            bad = np.argwhere((arr < 0) | (arr > 1))
+        if len(bad):
+            at = tuple(int(k) for k in bad[0])
+            rule = "in [0, 1]" if f.name == "restitution" else (f">= {lo:g}" if closed else f"> {lo:g}")
+            entry = f" entry {at}" if arr.ndim else ""
+            raise SceneError(f"{where}: field '{f.name}'{entry} = {arr[at]} must be {rule}")
