@@ -1,6 +1,17 @@
 """Shared test setup."""
+import os
+import tempfile
+
 import jax
 import pytest
+
+# Compiled programs are shared through JAX's persistent compilation cache by every process
+# of a test run: both xdist workers, the notebooks' kernels and the CLI's subprocesses
+# (which inherit the variable). Compilation dominates the suite, and several files compile
+# the same programs (the calibration notebook's is test_calibrate's). Entries are keyed by
+# the program and the jax version, so a cache left from an earlier run is safe to reuse.
+os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", os.path.join(tempfile.gettempdir(), "jaxdda-test-xla-cache"))
+jax.config.update("jax_compilation_cache_dir", os.environ["JAX_COMPILATION_CACHE_DIR"])
 
 
 @pytest.fixture(autouse=True, scope="module")

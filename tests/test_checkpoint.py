@@ -104,7 +104,9 @@ def runs(tmp_path_factory):
     import json
 
     folders = [tmp_path_factory.mktemp(name) for name in ("full", "second")]
-    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"} | {"PYTHONPATH": str(ROOT)}
+    # each process compiles its own programs: no XLA flags, no shared compilation cache
+    env = ({k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "JAX_COMPILATION_CACHE_DIR")}
+           | {"PYTHONPATH": str(ROOT)})
     procs = [subprocess.Popen([sys.executable, "-c", f"from tests.test_checkpoint import worker; "
                                                      f"worker({str(folder)!r}, {full})"],
                               cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)

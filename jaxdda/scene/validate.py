@@ -224,11 +224,11 @@ def check_no_interpenetration(shapes: list, labels: list[str], tol: float, adjac
                 )
 
 
-# Params fields and the range of their values (names of the run's parameters, for errors).
+# Params fields and the lower bound of their values: (bound, whether it is allowed).
 _PARAM_RANGES = {
     "dt": (0.0, False), "tol": (0.0, False), "max_iter": (1.0, True), "density": (0.0, False),
-    "young": (0.0, True), "friction": (0.0, True), "restitution": (0.0, True), "cohesion": (0.0, True),
-    "rolling": (0.0, True), "tensile": (0.0, True), "margin": (0.0, True), "rupture_width": (0.0, True),
+    "young": (0.0, True), "friction": (0.0, True), "cohesion": (0.0, True), "rolling": (0.0, True),
+    "tensile": (0.0, True), "margin": (0.0, True), "rupture_width": (0.0, True),
     "connector_axial": (0.0, True), "connector_bending": (0.0, True), "connector_shear": (0.0, True),
 }
 
@@ -245,12 +245,12 @@ def check_params(params, where: str = "params") -> None:
         if arr.dtype.kind not in "iuf":
             continue
         check_finite(where, f.name, arr)
-        lo, closed = _PARAM_RANGES.get(f.name, (-np.inf, True))
-        bad = np.argwhere((arr < lo) if closed else (arr <= lo))
         if f.name == "restitution":
-            bad = np.argwhere((arr < 0) | (arr > 1))
+            bad, rule = np.argwhere((arr < 0) | (arr > 1)), "in [0, 1]"
+        else:
+            lo, closed = _PARAM_RANGES.get(f.name, (-np.inf, True))
+            bad, rule = np.argwhere((arr < lo) if closed else (arr <= lo)), f">= {lo:g}" if closed else f"> {lo:g}"
         if len(bad):
             at = tuple(int(k) for k in bad[0])
-            rule = "in [0, 1]" if f.name == "restitution" else (f">= {lo:g}" if closed else f"> {lo:g}")
             entry = f" entry {at}" if arr.ndim else ""
             raise SceneError(f"{where}: field '{f.name}'{entry} = {arr[at]} must be {rule}")
