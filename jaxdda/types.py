@@ -203,7 +203,7 @@ class ContactReport:
 class StepInfo:
     """Diagnostics of one step."""
 
-    iterations: jax.Array  # () int32 projection-contraction iterations (impact + contact)
+    iterations: jax.Array  # () int32 solver iterations, products with W (impact + contact)
     residual: jax.Array  # () largest relative VI residual of the two solves
     converged: jax.Array  # () bool
     needed: jax.Array  # (5,) int32 slots needed per buffer, in the order of Capacities

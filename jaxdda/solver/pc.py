@@ -1,8 +1,10 @@
-"""Solve of the contact VI (paper eqs. 39-41) by accelerated projected gradient.
+"""Solve of the contact VI (paper eqs. 39-41) by accelerated projected gradient and
+semismooth Newton.
 
 The paper iterates projection-contraction (He & Liao 2002); its fixed point is the same,
 y = P(y - F(y)), which ``_iterate`` reaches with Nesterov momentum and adaptive restart
-(FISTA), about ten times fewer iterations on piles (see ``_iterate``).
+(FISTA), about ten times fewer iterations on piles (see ``_iterate``). Where redundant
+contacts stall it, ``_newton`` finishes the solve.
 
 Find p in X(p) with (q - p)^T G(p) >= 0 for all q in X(p), where G(p) = W p + b is the
 gap (or velocity) function, W = J K^-1 J^T the contact flexibility. W is never formed:
@@ -26,7 +28,7 @@ from jaxdda.solver.sets import ContactSets, project
 
 class Solution(NamedTuple):
     force: jax.Array  # (C, 3) normal force, shear force, rolling moment (or their impulses)
-    iterations: jax.Array  # () int32
+    iterations: jax.Array  # () int32 products with W: one per FISTA iteration, m + 2 per Newton step
     residual: jax.Array  # () max |p - P(p - G/diag W)| relative to max |p|
     converged: jax.Array  # () bool
 
@@ -58,13 +60,56 @@ def solve(apply_w: Callable[[Any, jax.Array], jax.Array], operand: Any, w_diag: 
     active = jnp.stack([enabled, enabled, rolls], -1)
     scale = jnp.where(active, 1.0 / jnp.sqrt(jnp.where(w_diag > 0, w_diag, 1.0)), 0.0)
 
-    y, k, res = _iterate(apply_w, *jax.lax.stop_gradient((operand, b, sets)), scale, p0, tol, max_iter, force_scale)
+    args = (apply_w, *jax.lax.stop_gradient((operand, b, sets)), scale)
+
+    # FISTA until converged, stalled or at the end of its segment; then semismooth Newton
+    # from its best point (a stalled solve: a near-redundant contact set); and again, each
+    # FISTA segment twice as long as the last, so Newton costs a bounded share.
+    def cond(carry):
+        return (carry[2] > tol) & (carry[1] < max_iter)
+
+    def body(carry):
+        y, k, _, lip, segment = carry
+        y, k, res, lip = _iterate(*args, y, k, lip, tol, jnp.minimum(max_iter, k + segment), force_scale,
+                                  segment // (SEGMENT // STALL))
+        y, k, res = _newton(*args, y, k, res, tol, max_iter, force_scale)
+        return y, k, res, lip, 2 * segment
+
+    y0 = p0 / jnp.where(scale > 0, scale, 1.0)
+    one = jnp.ones_like(tol)
+    y, k, res, _, _ = jax.lax.while_loop(cond, body, (y0, jnp.int32(0), jnp.inf * one, one, jnp.int32(SEGMENT)))
     y = _implicit(apply_w, operand, b, sets, scale, y)
     return Solution(scale * y, k, res, res <= tol)
 
 
-def _iterate(apply_w, operand, b, sets, scale, p0, tol, max_iter, force_scale):
-    """Accelerated projected gradient on the scaled unknowns y = p / scale.
+# FISTA hands over to Newton when its least residual has not halved in STALL iterations,
+# or after SEGMENT iterations (both doubling at each hand-over); Newton hands back when
+# its least residual has not fallen in NEWTON_PATIENCE steps.
+STALL, SEGMENT = 50, 200
+# Semismooth Newton steps per hand-over, each one GMRES cycle of at most NEWTON_KRYLOV products.
+NEWTON_STEPS, NEWTON_KRYLOV, NEWTON_PATIENCE = 24, 60, 6
+# A Newton system whose least-squares residual exceeds this part of its right side has no solution.
+NULL_GATE = 1e-8
+
+
+def _maps(apply_w, operand, b, sets, scale, force_scale):
+    """The projection, S W S, S b and the relative natural residual of the scaled VI."""
+    def proj(z):
+        return project(z, scale, sets)
+
+    def amul(y):  # S W S y
+        return scale * apply_w(operand, scale * y)
+
+    def residual(y, fy):
+        r = scale * (y - proj(y - fy))
+        size = jnp.maximum(jnp.max(jnp.abs(scale * y), initial=0.0), force_scale)
+        return jnp.max(jnp.abs(r), initial=0.0) / jnp.where(size > 0, size, 1.0)
+
+    return proj, amul, scale * b, residual
+
+
+def _iterate(apply_w, operand, b, sets, scale, y0, k0, lip0, tol, max_iter, force_scale, stall):
+    """Accelerated projected gradient on the scaled unknowns y = p / scale, from P(y0).
 
     FISTA (Beck & Teboulle 2009): y+ = P(z - F(z) / L) from the extrapolated point
     z = y + theta (y - y_prev), with the adaptive restart of O'Donoghue & Candes (2015):
@@ -75,39 +120,28 @@ def _iterate(apply_w, operand, b, sets, scale, p0, tol, max_iter, force_scale):
     of it is what counts on piles: ~10x fewer iterations than projection-contraction).
     P bounds them by the projected normal of the same point, so every iterate lies in
     X(y) and a fixed point solves the QVI. L (the largest eigenvalue of S W S, >= 1) is
-    found by backtracking: a step whose curvature d^T (S W S) d exceeds L |d|^2 is redone
-    with a larger L. S W S y is carried along (one product per iteration; the
-    extrapolation's by linearity), so the residual costs no extra product.
+    found by backtracking from ``lip0``: a step whose curvature d^T (S W S) d exceeds
+    L |d|^2 is redone with a larger L. S W S y is carried along (one product per
+    iteration; the extrapolation's by linearity), so the residual costs no extra product.
 
-    With friction the QVI is not monotone: a self-equilibrated force mode (S W S v = 0,
-    from redundant contacts) whose sliding contacts stay on their cone edges leaves G
-    unchanged, so along it the residual is flat; momentum crosses such valleys where a
-    plain projection method crawls, but where the face of X holding the iterate has no
-    solution (a frictional wedge: the mode's equations are inconsistent) the residual has
-    a floor that no iteration goes below. The iterate of least residual is returned.
+    Redundant contacts (two corners on one face, an adjoint pair) give S W S null
+    modes: self-equilibrated forces that move nothing. Where S b has a component along
+    one (the contacts' kinematics disagree, by as little as 1e-8), no force sticks both
+    contacts, and the solution lies where the mode meets a friction cone; along the mode
+    the residual is flat and the iterates crawl towards it. So the loop also stops when
+    its least residual has not halved in ``stall`` iterations (``_newton`` takes over).
+    Returns the iterate of least residual, the iteration count, that residual and L.
     """
-    def proj(z):
-        return project(z, scale, sets)
-
-    def amul(y):  # S W S y
-        return scale * apply_w(operand, scale * y)
-
-    c = scale * b
-
-    def residual(y, fy):
-        r = scale * (y - proj(y - fy))
-        size = jnp.maximum(jnp.max(jnp.abs(scale * y), initial=0.0), force_scale)
-        return jnp.max(jnp.abs(r), initial=0.0) / jnp.where(size > 0, size, 1.0)
-
-    y0 = proj(jnp.where(sets.enabled[:, None], p0 / jnp.where(scale > 0, scale, 1.0), 0.0))
+    proj, amul, c, residual = _maps(apply_w, operand, b, sets, scale, force_scale)
+    y0 = proj(jnp.where(sets.enabled[:, None], y0, 0.0))
     a0 = amul(y0)
 
     def cond(carry):
-        k, res = carry[-2], carry[-1]
-        return (res > tol) & (k < max_iter)
+        k, res, k_mark = carry[-4], carry[-3], carry[-2]
+        return (res > tol) & (k < max_iter) & (k - k_mark <= stall)
 
     def body(carry):
-        y, ay, y_prev, ay_prev, t, lip, y_best, k, res_best = carry
+        y, ay, y_prev, ay_prev, t, lip, y_best, k, res_best, k_mark, res_mark = carry
         t_next = 0.5 * (1.0 + jnp.sqrt(1.0 + 4.0 * t * t))
         theta = (t - 1.0) / t_next
         z, az = y + theta * (y - y_prev), ay + theta * (ay - ay_prev)
@@ -125,13 +159,98 @@ def _iterate(apply_w, operand, b, sets, scale, p0, tol, max_iter, force_scale):
         t = jnp.where(ok, jnp.where(restart, 1.0, t_next), t)
         res = residual(y, ay + c)
         better = res < res_best
-        return (y, ay, y_prev, ay_prev, t, lip, jnp.where(better, y, y_best), k + 1,
-                jnp.where(better, res, res_best))
+        res_best = jnp.where(better, res, res_best)
+        halved = res_best <= 0.5 * res_mark
+        return (y, ay, y_prev, ay_prev, t, lip, jnp.where(better, y, y_best), k + 1, res_best,
+                jnp.where(halved, k + 1, k_mark), jnp.where(halved, res_best, res_mark))
 
-    one = jnp.asarray(1.0, b.dtype)
-    init = (y0, a0, y0, a0, one, one, y0, jnp.int32(0), residual(y0, a0 + c))
-    *_, y_best, k, res = jax.lax.while_loop(cond, body, init)
-    return y_best, k, res
+    one = jnp.ones_like(lip0)
+    res0 = residual(y0, a0 + c)
+    init = (y0, a0, y0, a0, one, lip0, y0, k0, res0, k0, res0)
+    y, _, _, _, _, lip, y_best, k, res, _, _ = jax.lax.while_loop(cond, body, init)
+    return y_best, k, res, lip
+
+
+def _newton(apply_w, operand, b, sets, scale, y0, k0, res0, tol, max_iter, force_scale):
+    """Semismooth Newton on the natural map R(y) = y - P(y - F(y)), from a stalled FISTA.
+
+    Each step solves (I - D (I - S W S)) delta = -R(y) in the least-squares sense (one
+    GMRES cycle), D the Jacobian of P at y - F(y) (the matrix of ``_implicit``): on a
+    face of X the step is exact, whatever the conditioning. Where the face holds a null
+    mode with S b along it, the system has no solution and what GMRES leaves, e, lies
+    along the mode; the step then goes on along e to the first bound it meets
+    (``_ratio``), the face the solution lies on, and the next step solves that face. A
+    stalled two-corner landing converges in 2 to 4 steps to a residual of 1e-14. The
+    steps are not monotone in the residual: the least one is kept. A step counts as the
+    m + 2 iterations its products with W cost (m those of the GMRES cycle).
+    """
+    proj, amul, c, residual = _maps(apply_w, operand, b, sets, scale, force_scale)
+    m = min(NEWTON_KRYLOV, y0.size)
+
+    def cond(carry):
+        _, _, res, j, k, j_best = carry
+        return (res > tol) & (j < NEWTON_STEPS) & (k < max_iter) & (j - j_best <= NEWTON_PATIENCE)
+
+    def body(carry):
+        y, y_best, res_best, j, k, j_best = carry
+        r, d_proj = jax.linearize(proj, y - (amul(y) + c))
+        rhs = r - y
+        delta, left = _krylov(lambda v: v - d_proj(v - amul(v)), rhs, m)
+        inconsistent = jnp.sum(left * left) > NULL_GATE ** 2 * jnp.sum(rhs * rhs)
+        y = y + delta
+        y = proj(y + jnp.where(inconsistent, _ratio(y, left, scale, sets), 0.0) * left)
+        res = residual(y, amul(y) + c)
+        better = res < res_best
+        return (y, jnp.where(better, y, y_best), jnp.where(better, res, res_best), j + 1, k + m + 2,
+                jnp.where(better, j + 1, j_best))
+
+    _, y, res, _, k, _ = jax.lax.while_loop(cond, body, (y0, y0, res0, jnp.int32(0), k0, jnp.int32(0)))
+    return y, k, res
+
+
+def _ratio(y, u, scale, sets):
+    """The largest s >= 0 with y + s u inside the bounds of X that y does not touch:
+    p_n >= 0, |p_t| <= mu p_n, |m_r| <= delta p_n, linear in s (cohesion and tension,
+    which only widen them, are left out: the step may stop short, never beyond)."""
+    s_n = scale[:, 0]
+    ratios = [jnp.where((u[:, 0] < 0) & (y[:, 0] > 0), -y[:, 0] / jnp.where(u[:, 0] < 0, u[:, 0], -1.0), jnp.inf)]
+    for i, coef in ((1, sets.friction), (2, sets.rolling)):
+        slope = coef * s_n / jnp.where(scale[:, i] > 0, scale[:, i], 1.0)  # bound on y_i per unit of y_n
+        for sign in (1.0, -1.0):
+            slack, rate = slope * y[:, 0] - sign * y[:, i], sign * u[:, i] - slope * u[:, 0]
+            ok = (rate > 0) & (slack > 0) & (scale[:, i] > 0)
+            ratios.append(jnp.where(ok, slack / jnp.where(ok, rate, 1.0), jnp.inf))
+    s = jnp.min(jnp.where(sets.enabled, jnp.min(jnp.stack(ratios), 0), jnp.inf), initial=jnp.inf)
+    return jnp.where(jnp.isfinite(s), s, 0.0)
+
+
+def _krylov(matvec, rhs, m):
+    """One GMRES(m) cycle for matvec(x) = rhs: Arnoldi with twice-repeated classical
+    Gram-Schmidt, then the least-squares problem of the Hessenberg matrix. Returns the
+    (minimum-norm) solution x and what it leaves, rhs - matvec(x)."""
+    shape, beta = rhs.shape, jnp.sqrt(jnp.sum(rhs * rhs))
+    basis = jnp.zeros((m + 1, rhs.size), rhs.dtype).at[0].set(rhs.ravel() / jnp.where(beta > 0, beta, 1.0))
+    rows = jnp.arange(m + 1)
+
+    def arnoldi(j, carry):
+        basis, hess = carry
+        w = matvec(basis[j].reshape(shape)).ravel()
+        h = jnp.where(rows <= j, basis @ w, 0.0)
+        w = w - h @ basis
+        h2 = jnp.where(rows <= j, basis @ w, 0.0)
+        w, h = w - h2 @ basis, h + h2
+        norm = jnp.sqrt(jnp.sum(w * w))
+        basis = basis.at[j + 1].set(w / jnp.where(norm > 0, norm, 1.0))
+        return basis, hess.at[:, j].set(h.at[j + 1].set(norm))
+
+    basis, hess = jax.lax.fori_loop(0, m, arnoldi, (basis, jnp.zeros((m + 1, m), rhs.dtype)))
+    e1 = jnp.zeros(m + 1, rhs.dtype).at[0].set(beta)
+    # Minimum-norm least squares through the eigenvalues of H^T H (modes below 1e-16 of
+    # the largest, singular values below 1e-8, count as null).
+    lam, vec = jnp.linalg.eigh(hess.T @ hess)
+    keep = lam > 1e-16 * lam[-1]
+    coef = vec @ (jnp.where(keep, 1.0 / jnp.where(keep, lam, 1.0), 0.0) * (vec.T @ (hess.T @ e1)))
+    return (coef @ basis[:m]).reshape(shape), ((e1 - hess @ coef) @ basis).reshape(shape)
 
 
 # The adjoint linear solves: GMRES, restarted (the system is square, not symmetric where
