@@ -1,36 +1,30 @@
-"""Known departure found by the fuzzer (experiments/fuzz.py, seeds 32, 58, 62, 112, 222):
-total mechanical energy grows, slightly, while a body turns about a sustained contact.
+"""Energy of a body turning about a sustained contact (found by experiments/fuzz.py,
+seeds 32, 58, 62, 112, 222; docs/design.md, "Energy").
 
-The minimal case: a 1 m square (1000 kg/m^2) standing on one corner on a fixed floor, its
-diagonal 0.3 rad from the vertical, released from rest; gravity is the only force doing
-work and the contact does none (frictionless, or stuck with mu = 0.8), so kinetic +
-potential must not grow. Prints the energy gained over 0.3 s per dt and friction, with
-the observed order, and writes experiments/results/energy_at_turning_contacts.json.
+The minimal case (tests/test_fuzz.py ``tipping_square``): a 1 m square (1000 kg/m^2)
+standing on one corner on a fixed floor, its diagonal 0.3 rad from the vertical,
+released from rest; gravity is the only force doing work and the contact does none
+(frictionless, or stuck with mu = 0.8), so kinetic + potential must not grow. Prints the
+energy gained over 0.3 s per dt and friction, with the observed order, and writes
+experiments/results/energy_at_turning_contacts.json.
 Usage: python experiments/energy_at_turning_contacts.py
 """
 from __future__ import annotations
 
 import json
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
 
-import jaxdda
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+import jaxdda  # noqa: E402
+from tests.test_fuzz import tipping_square  # noqa: E402
 
 DURATION = 0.3
-
-
-def tipping_square(dt: float, friction: float) -> jaxdda.Scene:
-    sb = jaxdda.SceneBuilder(dt=dt, gravity=(0.0, -9.81))
-    sb.add_material("floor", friction=friction, restitution=0.0)
-    sb.add_polygon([(-2, -1), (2, -1), (2, 0), (-2, 0)], density=1.0, fixed=True, material="floor")
-    a = math.pi / 4 + 0.3
-    turn = np.array([[math.cos(a), math.sin(a)], [-math.sin(a), math.cos(a)]])
-    square = np.array([(0, 0), (1, 0), (1, 1), (0, 1)], float) @ turn
-    square[:, 1] += 1e-9 - square[:, 1].min()  # the low corner just above the floor
-    sb.add_polygon(square, density=1000.0, material="floor")
-    return sb.build()
 
 
 def main() -> None:

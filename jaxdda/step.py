@@ -17,13 +17,13 @@ from jaxdda.connectors import connector_forces, connector_terms
 from jaxdda.contact.adjoint import adjoint_partner
 from jaxdda.contact.detect import contact_materials, detect, world_vertices
 from jaxdda.contact.keys import lookup
-from jaxdda.contact.kinematics import (apply_jacobian, apply_jacobian_t, clockwise, gap_change, gap_frame,
-                                       jacobians)
+from jaxdda.contact.kinematics import (apply_jacobian, apply_jacobian_t, clockwise, discrete_gradient, gap_change,
+                                       gap_frame, jacobians)
 from jaxdda.integrate import (common_impact_time, free_displacement, impact_clock, impact_time, matvec, mesh_clock,
                               newmark_velocity)
 from jaxdda.groups import Flexibility
 from jaxdda.solver import pc
-from jaxdda.solver.sets import ContactSets
+from jaxdda.solver.sets import ContactSets, sticking
 from jaxdda.types import NO_JOINT, POLYGON, ContactReport, Contacts, Model, Params, State, StepInfo
 
 
@@ -132,9 +132,9 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     gap_ref = gap_frame(c, state.origin, jnp.zeros_like(state.rotation))[0]
     gap0 = gap_ref + gap_change(c, state.origin, jnp.zeros_like(state.rotation), state.displacement, state.rotation)
 
-    def gap_at(d):  # exact gap after the step's displacement d (N, 6)
+    def gap_change_by(d):  # exact change of the gaps over the step's displacement d (N, 6)
         d_c = pins.centroid_step(model, centroid, d) if pinned else d[:, :2]  # pinned: on the arc about the pin
-        return gap0 + gap_change(c, centroid, state.rotation, d_c, d[:, 2], d[:, 3:])
+        return gap_change(c, centroid, state.rotation, d_c, d[:, 2], d[:, 3:])
 
     sets, cemented, joint = _contact_sets(model, state, params, c, normal)
     restitution = params.restitution[contact_materials(model, c)]
@@ -206,16 +206,29 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
         k_inv = groups.grouped(k_eff, proj, model, maps, coupling)
         d_base = free_displacement(k_inv, mass, load, v_star, dt) + shift
         d_pred = d_base + groups.apply(k_inv, apply_jacobian_t(mid_frame(d_base + push0)[0], c, p0, n))
-    gap_pred = gap_at(d_pred)
+    change_pred = gap_change_by(d_pred)
+    gap_pred = gap0 + change_pred
     jac_mid, normal_mid, point_mid = mid_frame(d_pred)
-    # G(p) = W p + b: the gap at the predictor plus the linear change from it. Shear and
-    # rolling gaps are taken at velocity level: (dt / 2) times the relative velocity at
-    # the step's end, v+ = 2 (d - shift) / dt - v* (Moreau's Coulomb law). A contact that
-    # sticks then ends the step at rest, not at -v: with the paper's relative motion over
-    # the step, a block that stops by friction keeps a velocity that flips sign every
-    # step (d = 0 gives v+ = -v). The sign of the two agrees whenever the motion does
-    # not reverse inside the step, so sliding is unchanged.
-    b_con = apply_jacobian(jac_mid, c, d_base - shift - 0.5 * dt * v_star)
+    # The normal row as the discrete gradient of the gap over the predictor's motion: the
+    # normal force then does no work on a closed contact (energy, see discrete_gradient).
+    jac_mid = discrete_gradient(jac_mid, c, d_pred, change_pred, model.bound_radius)
+    # G(p) = W p + b: the gap at the predictor plus the linear change from it. The shear
+    # gap is the paper's relative motion over the step, J_t (d - shift), on a contact that
+    # stuck last step (and did not slide in this step's impacts): its shear force then does
+    # no work while a body turns about it (the tipping block; with the velocity-level row
+    # it does work p_t (dt / 2) J_t v*, where the lever's turn since the last step leaves
+    # J_t v* = O(omega^2 r dt): energy grows at first order). Elsewhere, and on the rolling
+    # row, it is taken at velocity level: (dt / 2) times the relative velocity at the
+    # step's end, v+ = 2 (d - shift) / dt - v* (Moreau's Coulomb law). A contact that
+    # starts to stick then ends the step at rest, not at -v: with the relative motion, a
+    # block that stops by friction keeps a velocity that flips sign every step (d = 0
+    # gives v+ = -v). The sign of the two agrees whenever the motion does not reverse
+    # inside the step, so sliding is unchanged.
+    held = sticking(p0, sets) & ~((imp.force[:, 0] > 0) & ~sticking(imp.force, imp_sets))
+    held = held & jnp.where(sets.partner >= 0, held[jnp.maximum(sets.partner, 0)], True)  # an interface as one
+    end_velocity = apply_jacobian(jac_mid, c, 0.5 * dt * v_star)
+    end_velocity = end_velocity.at[:, 1].set(jnp.where(held, 0.0, end_velocity[:, 1]))
+    b_con = apply_jacobian(jac_mid, c, d_base - shift) - end_velocity
     b_con = b_con.at[:, 0].set(gap_pred - apply_jacobian(jac_mid, c, d_pred - d_base)[:, 0])
     op_k, diag_k = _flexibility(jac_mid, c, k_inv)
     force_scale = momentum / dt

@@ -221,6 +221,22 @@ def build(spec: dict) -> jaxdda.Scene:
     return sb.build()
 
 
+def tipping_square(dt: float, friction: float) -> jaxdda.Scene:
+    """A body turning about a sustained contact (docs/design.md, "Energy"): a 1 m square
+    (1000 kg/m^2) standing on one corner on a fixed floor, its diagonal 0.3 rad from the
+    vertical, released from rest. Gravity alone does work; the contact (frictionless, or
+    stuck at mu = 0.8) does none, so kinetic + potential energy may not grow."""
+    sb = jaxdda.SceneBuilder(dt=dt, gravity=(0.0, -9.81), name="tipping square")
+    sb.add_material(MATERIALS[0], friction=friction, restitution=0.0)
+    sb.add_polygon([(-2, -1), (2, -1), (2, 0), (-2, 0)], density=1.0, fixed=True, material=MATERIALS[0])
+    a = math.pi / 4 + 0.3
+    turn = np.array([[math.cos(a), math.sin(a)], [-math.sin(a), math.cos(a)]])
+    square = np.array([(0, 0), (1, 0), (1, 1), (0, 1)], float) @ turn
+    square[:, 1] += 1e-9 - square[:, 1].min()  # the low corner just above the floor
+    sb.add_polygon(square, density=1000.0, material=MATERIALS[0])
+    return sb.build()
+
+
 @functools.lru_cache(maxsize=1)
 def _template_shape() -> Shape:
     """The common padded shape (from one scene of each kind: loads, joints, groups are
@@ -257,6 +273,16 @@ def _measures(model, state, params):
     return kinetic + potential, jnp.stack([px, py, ang]), scale_e, scale_p, scale_l, speed, impulse
 
 
+def overlap_work(rep) -> jax.Array:
+    """The work the normal forces do in pushing out the overlap a step starts with:
+    sum p_n max(-g0, 0). The contacts' total work over a step is exactly
+    -sum p_n g0 + sum p_t G_t (docs/design.md, "Energy"): friction only dissipates and a
+    closed contact does none, so energy may grow by this much, and no more. The overlap
+    itself is bounded by the penetration invariant (second order in the step's motion)."""
+    push = jnp.maximum(rep.normal_force, 0.0) * jnp.maximum(-rep.gap, 0.0)
+    return jnp.sum(jnp.where(rep.valid, push, 0.0))
+
+
 def _scenario(model, state, params, steps: int, sample: int):
     e0, mom0, se0, sp0, sl0, speed0, imp0 = _measures(model, state, params)
     acc0 = {"finite": jnp.array(True), "pen_ratio": jnp.array(0.0), "pen_rel": jnp.array(0.0), "penetration": jnp.array(0.0),
@@ -291,7 +317,7 @@ def _scenario(model, state, params, steps: int, sample: int):
                        + 4.0 * jnp.max(jnp.sum(move2 ** 2, -1)) / jnp.min(free_size))
         # energy: step growth against round-off + solver allowance
         n_c = info.n_contacts.astype(float)
-        tol_e = (ROUND * jnp.maximum(se, se_prev)
+        tol_e = (ROUND * jnp.maximum(se, se_prev) + overlap_work(rep)
                  + SOLVER_SLACK * n_c * params.tol * jnp.maximum(imp, imp_prev) * jnp.maximum(speed, speed_prev))
         growth = e - e_prev
         ratio = growth / jnp.maximum(tol_e, 1e-300)
@@ -431,14 +457,22 @@ def reproducer(scene, steps: int, folder) -> Path:
 
 # ----------------------------------------------------------------------------- tests
 BATCH, STEPS, SAMPLE = 16, 50, 25  # SAMPLE: poses checked on the host every this many steps
+# Scenes experiments/fuzz.py once failed on. Seed 62 (Kane's paradox: Newton's law with a
+# sticking impact makes energy) is still open and left out (docs/design.md, "Energy").
+REGRESSION_SEEDS = (32, 58, 112, 222)
 
 
 @settings(max_examples=1, derandomize=True, deadline=None, database=None, phases=[Phase.explicit, Phase.generate],
           suppress_health_check=list(HealthCheck))
 @given(st.data())
 def test_random_scenes_keep_the_invariants(data):
-    specs = [draw_spec(HypothesisDraw(data)) for _ in range(BATCH)]
-    scenes = [build(s) for s in specs]
+    """A batch of drawn scenes, with experiments/fuzz.py's past failures always in it: its
+    seeds (energy gained while bodies turn about sustained contacts) and the tipping
+    square stuck at a corner."""
+    specs = ([draw_spec(RngDraw(seed)) for seed in REGRESSION_SEEDS]
+             + [draw_spec(HypothesisDraw(data)) for _ in range(BATCH - len(REGRESSION_SEEDS) - 1)])
+    scenes = [build(s) for s in specs] + [tipping_square(4e-3, 0.8)]
+    specs.append({"free": False})
     acc, poses, _ = run_batch(scenes, STEPS, sample=SAMPLE)
     bad = check_batch(scenes, acc, poses, STEPS)
     messages = []

@@ -87,3 +87,19 @@ def project(y: jax.Array, scale: jax.Array, sets: ContactSets, normal: jax.Array
     bound_m = sets.rolling * p_n / jnp.where(s_m > 0, s_m, 1.0)
     y_m = jnp.clip(y[:, 2], -bound_m, bound_m)
     return jnp.where(sets.enabled[:, None], jnp.stack([y_n, y_t, y_m], -1), 0.0)
+
+
+# A shear force within this fraction of its bound is on the bound (the solver's iterates
+# are projections, so a sliding contact sits on its bound to a few ulp).
+ON_BOUND = 1e-9
+
+
+def sticking(p: jax.Array, sets: ContactSets) -> jax.Array:
+    """(C,) bool: the shear force of p (C, 3) (forces or impulses) strictly inside its
+    bound c + mu p_n (the cohesion the partner leaves), i.e. the contact sticks (G_t = 0)."""
+    part = jnp.where(sets.partner >= 0, sets.partner, 0)
+    p_n = jnp.maximum(p[:, 0], 0.0)
+    excess = jnp.maximum(jnp.abs(p[:, 1]) - sets.friction * p_n, 0.0)
+    left = jnp.maximum(sets.cohesion - jnp.where(sets.partner >= 0, excess[part], 0.0), 0.0)
+    bound = sets.friction * p_n + left
+    return sets.enabled & (bound > 0) & (jnp.abs(p[:, 1]) < (1.0 - ON_BOUND) * bound)
