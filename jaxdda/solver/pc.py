@@ -62,30 +62,37 @@ def solve(apply_w: Callable[[Any, jax.Array], jax.Array], operand: Any, w_diag: 
 
     args = (apply_w, *jax.lax.stop_gradient((operand, b, sets)), scale)
 
-    # FISTA until converged, stalled or at the end of its segment; then semismooth Newton
-    # from its best point (a stalled solve: a near-redundant contact set); and again, each
-    # FISTA segment twice as long as the last, so Newton costs a bounded share.
+    # FISTA until converged or stalled; then semismooth Newton from its best point (a
+    # stalled solve: a near-redundant contact set); and again, with FISTA's patience
+    # doubled at each hand-over, so Newton costs a bounded share.
     def cond(carry):
         return (carry[2] > tol) & (carry[1] < max_iter)
 
+    # A Newton attempt that finds no better point leaves FISTA's momentum as it was.
+    def cond(carry):
+        fista = carry[0]
+        return (fista[8] > tol) & (fista[7] < max_iter)
+
     def body(carry):
-        y, k, _, lip, segment = carry
-        y, k, res, lip = _iterate(*args, y, k, lip, tol, jnp.minimum(max_iter, k + segment), force_scale,
-                                  segment // (SEGMENT // STALL))
-        y, k, res = _newton(*args, y, k, res, tol, max_iter, force_scale)
-        return y, k, res, lip, 2 * segment
+        fista, stall = carry
+        fista = _iterate(*args, fista, tol, max_iter, force_scale, stall)
+        y, k, res = _newton(*args, fista[6], fista[7], fista[8], tol, max_iter, force_scale)
+        fresh = _fista_start(*args, y, k, fista[5], force_scale)
+        kept = fista[:7] + (k, fista[8], k, fista[10])
+        return jax.tree.map(lambda a, b: jnp.where(res < fista[8], a, b), fresh, kept), 2 * stall
 
     y0 = p0 / jnp.where(scale > 0, scale, 1.0)
-    one = jnp.ones_like(tol)
-    y, k, res, _, _ = jax.lax.while_loop(cond, body, (y0, jnp.int32(0), jnp.inf * one, one, jnp.int32(SEGMENT)))
+    fista = _fista_start(*args, y0, jnp.int32(0), jnp.ones_like(tol), force_scale)
+    fista, _ = jax.lax.while_loop(cond, body, (fista, jnp.int32(STALL)))
+    y, k, res = fista[6], fista[7], fista[8]
     y = _implicit(apply_w, operand, b, sets, scale, y)
     return Solution(scale * y, k, res, res <= tol)
 
 
-# FISTA hands over to Newton when its least residual has not halved in STALL iterations,
-# or after SEGMENT iterations (both doubling at each hand-over); Newton hands back when
-# its least residual has not fallen in NEWTON_PATIENCE steps.
-STALL, SEGMENT = 50, 200
+# FISTA hands over to Newton when its least residual has not halved in STALL iterations
+# (doubling at each hand-over); Newton hands back when its least residual has not fallen
+# in NEWTON_PATIENCE steps.
+STALL = 50
 # Semismooth Newton steps per hand-over, each one GMRES cycle of at most NEWTON_KRYLOV products.
 NEWTON_STEPS, NEWTON_KRYLOV, NEWTON_PATIENCE = 24, 60, 6
 # A Newton system whose least-squares residual exceeds this part of its right side has no solution.
@@ -108,8 +115,18 @@ def _maps(apply_w, operand, b, sets, scale, force_scale):
     return proj, amul, scale * b, residual
 
 
-def _iterate(apply_w, operand, b, sets, scale, y0, k0, lip0, tol, max_iter, force_scale, stall):
-    """Accelerated projected gradient on the scaled unknowns y = p / scale, from P(y0).
+def _fista_start(apply_w, operand, b, sets, scale, y0, k0, lip0, force_scale):
+    """The state of ``_iterate`` starting at P(y0) after k0 iterations, with L = lip0:
+    (y, S W S y, y_prev, its product, t, L, y_best, k, res_best, k_mark, res_mark)."""
+    proj, amul, c, residual = _maps(apply_w, operand, b, sets, scale, force_scale)
+    y0 = proj(jnp.where(sets.enabled[:, None], y0, 0.0))
+    a0 = amul(y0)
+    res0 = residual(y0, a0 + c)
+    return (y0, a0, y0, a0, jnp.ones_like(lip0), lip0, y0, k0, res0, k0, res0)
+
+
+def _iterate(apply_w, operand, b, sets, scale, state, tol, max_iter, force_scale, stall):
+    """Accelerated projected gradient on the scaled unknowns y = p / scale, from ``state``.
 
     FISTA (Beck & Teboulle 2009): y+ = P(z - F(z) / L) from the extrapolated point
     z = y + theta (y - y_prev), with the adaptive restart of O'Donoghue & Candes (2015):
@@ -120,7 +137,7 @@ def _iterate(apply_w, operand, b, sets, scale, y0, k0, lip0, tol, max_iter, forc
     of it is what counts on piles: ~10x fewer iterations than projection-contraction).
     P bounds them by the projected normal of the same point, so every iterate lies in
     X(y) and a fixed point solves the QVI. L (the largest eigenvalue of S W S, >= 1) is
-    found by backtracking from ``lip0``: a step whose curvature d^T (S W S) d exceeds
+    found by backtracking: a step whose curvature d^T (S W S) d exceeds
     L |d|^2 is redone with a larger L. S W S y is carried along (one product per
     iteration; the extrapolation's by linearity), so the residual costs no extra product.
 
@@ -130,11 +147,9 @@ def _iterate(apply_w, operand, b, sets, scale, y0, k0, lip0, tol, max_iter, forc
     contacts, and the solution lies where the mode meets a friction cone; along the mode
     the residual is flat and the iterates crawl towards it. So the loop also stops when
     its least residual has not halved in ``stall`` iterations (``_newton`` takes over).
-    Returns the iterate of least residual, the iteration count, that residual and L.
+    Returns the state: y_best is the iterate of least residual, res_best that residual.
     """
     proj, amul, c, residual = _maps(apply_w, operand, b, sets, scale, force_scale)
-    y0 = proj(jnp.where(sets.enabled[:, None], y0, 0.0))
-    a0 = amul(y0)
 
     def cond(carry):
         k, res, k_mark = carry[-4], carry[-3], carry[-2]
@@ -164,11 +179,7 @@ def _iterate(apply_w, operand, b, sets, scale, y0, k0, lip0, tol, max_iter, forc
         return (y, ay, y_prev, ay_prev, t, lip, jnp.where(better, y, y_best), k + 1, res_best,
                 jnp.where(halved, k + 1, k_mark), jnp.where(halved, res_best, res_mark))
 
-    one = jnp.ones_like(lip0)
-    res0 = residual(y0, a0 + c)
-    init = (y0, a0, y0, a0, one, lip0, y0, k0, res0, k0, res0)
-    y, _, _, _, _, lip, y_best, k, res, _, _ = jax.lax.while_loop(cond, body, init)
-    return y_best, k, res, lip
+    return jax.lax.while_loop(cond, body, state)
 
 
 def _newton(apply_w, operand, b, sets, scale, y0, k0, res0, tol, max_iter, force_scale):
@@ -227,7 +238,7 @@ def _ratio(y, u, scale, sets):
 def _krylov(matvec, rhs, m):
     """One GMRES(m) cycle for matvec(x) = rhs: Arnoldi with twice-repeated classical
     Gram-Schmidt, then the least-squares problem of the Hessenberg matrix. Returns the
-    (minimum-norm) solution x and what it leaves, rhs - matvec(x)."""
+    solution x (without its null modes) and what it leaves, rhs - matvec(x)."""
     shape, beta = rhs.shape, jnp.sqrt(jnp.sum(rhs * rhs))
     basis = jnp.zeros((m + 1, rhs.size), rhs.dtype).at[0].set(rhs.ravel() / jnp.where(beta > 0, beta, 1.0))
     rows = jnp.arange(m + 1)
@@ -245,12 +256,38 @@ def _krylov(matvec, rhs, m):
 
     basis, hess = jax.lax.fori_loop(0, m, arnoldi, (basis, jnp.zeros((m + 1, m), rhs.dtype)))
     e1 = jnp.zeros(m + 1, rhs.dtype).at[0].set(beta)
-    # Minimum-norm least squares through the eigenvalues of H^T H (modes below 1e-16 of
-    # the largest, singular values below 1e-8, count as null).
-    lam, vec = jnp.linalg.eigh(hess.T @ hess)
-    keep = lam > 1e-16 * lam[-1]
-    coef = vec @ (jnp.where(keep, 1.0 / jnp.where(keep, lam, 1.0), 0.0) * (vec.T @ (hess.T @ e1)))
+    coef = _least_squares(hess, e1)
     return (coef @ basis[:m]).reshape(shape), ((e1 - hess @ coef) @ basis).reshape(shape)
+
+
+def _least_squares(a, g):
+    """min |a c - g|^2 + (1e-8 |a|)^2 |c|^2 for a small (r, m) matrix, by Householder QR of
+    a over the scaled identity and back substitution, in plain array code: batched LAPACK
+    kernels deadlock on XLA:CPU's thread pool (docs/design.md, "No LAPACK in the step").
+    The damping drops singular values below 1e-8 |a| (null modes) and keeps the rest."""
+    r, m = a.shape
+    damp = 1e-8 * jnp.sqrt(jnp.sum(a * a))
+    a = jnp.concatenate([a, damp * jnp.eye(m, dtype=a.dtype)])
+    g = jnp.concatenate([g, jnp.zeros(m, g.dtype)])
+    rows = jnp.arange(r + m)
+
+    def reflect(j, carry):
+        a, g = carry
+        x = jnp.where(rows >= j, a[:, j], 0.0)
+        norm = jnp.sqrt(jnp.sum(x * x))
+        v = x.at[j].add(jnp.where(x[j] < 0, -norm, norm))  # x + sign(x_j) |x| e_j
+        vv = jnp.sum(v * v)
+        k = jnp.where(vv > 0, 2.0 / jnp.where(vv > 0, vv, 1.0), 0.0)
+        return a - k * jnp.outer(v, v @ a), g - k * v * (v @ g)
+
+    a, g = jax.lax.fori_loop(0, m, reflect, (a, g))
+    diag = jnp.diagonal(a[:m])
+
+    def substitute(i, c):
+        j = m - 1 - i
+        return c.at[j].set(jnp.where(diag[j] != 0, (g[j] - a[j, :m] @ c) / jnp.where(diag[j] != 0, diag[j], 1.0), 0.0))
+
+    return jax.lax.fori_loop(0, m, substitute, jnp.zeros(m, a.dtype))
 
 
 # The adjoint linear solves: GMRES, restarted (the system is square, not symmetric where
