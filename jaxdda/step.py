@@ -39,6 +39,36 @@ def _apply_w(operand, p: jax.Array) -> jax.Array:
     return apply_jacobian(jac, c, groups.apply(inv, apply_jacobian_t(jac, c, p, inv.single.shape[0])))
 
 
+def _poisson_impact(op_m, diag_m, v_hit: jax.Array, imp_sets: ContactSets, bounce: jax.Array, params: Params,
+                    momentum: jax.Array) -> pc.Solution:
+    """Impulses P (C, 3) of the impacts by Poisson's law with Coulomb friction, in two phases.
+
+    Compression: the plastic impact, P1 solving the VI with G = W P1 + v(t*) (no contact
+    approaches after it). Restitution: P2 with P2_n >= e P1_n at each contact, on the
+    velocities after compression: a VI in x = P2 - e P1_n (normal) with x_n >= 0, its
+    friction bound mu (x_n + e P1_n) = mu x_n + (a cohesion of mu e P1_n). P = P1 + P2.
+
+    Newton's law (v+_n = -e v-_n at once) with friction makes energy where a contact sticks
+    while the normal impulse turns the body (Kane's paradox: a spinning polygon striking a
+    wall, dKE = P . (v- + v+) / 2 > 0 with the shear impulse along the slip before it).
+    Poisson's keeps each phase dissipative, and agrees with Newton's for a single
+    frictionless contact, for e = 0, and for impulses passed through touching chains (the
+    touching pair struck with e = 1 still leaves them at (-1/3, 2/3, 2/3) v). In the
+    restitution phase the rolling bound is delta x_n (the rebound part only).
+    """
+    def solve(b, sets):
+        return pc.solve(_apply_w, op_m, diag_m, b, sets, jnp.zeros_like(b), params.tol, params.max_iter, momentum)
+
+    comp = solve(v_hit, imp_sets)
+    rebound = bounce * jnp.maximum(comp.force[:, 0], 0.0)
+    kick = jnp.zeros_like(v_hit).at[:, 0].set(rebound)
+    b_rest = _apply_w(op_m, comp.force + kick) + v_hit
+    rest_sets = imp_sets._replace(cohesion=imp_sets.friction * rebound, partner=jnp.full_like(imp_sets.partner, -1))
+    rest = solve(b_rest, rest_sets)
+    return pc.Solution(comp.force + kick + rest.force, comp.iterations + rest.iterations,
+                       jnp.maximum(comp.residual, rest.residual), comp.converged & rest.converged)
+
+
 def _flexibility(jac: jax.Array, c: Contacts, inv: Flexibility):
     """The operand of ``_apply_w`` for W = J inv J^T, and W's diagonal (C, 3) (with the
     coupling of a contact's two bodies where they share a dof group, eq. 112)."""
@@ -142,7 +172,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     # Force scale of the scene this step: residuals far below it are round-off.
     momentum = jnp.max(jnp.abs(matvec(mass, vel)) + jnp.abs(load) * dt, initial=0.0)
 
-    # 1. Impacts: Newton's law at the impact time t*, impulses P (velocity level).
+    # 1. Impacts: Poisson's law at the impact time t*, impulses P (velocity level).
     # A contact that carried force last step, or is cemented, is sustained, not struck:
     # it is closed (its gap, however small, is not a free fall to an impact), it takes
     # part in the impact solve (so impulses pass through a resting stack) and it does not
@@ -170,11 +200,10 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     closed = gap0 <= params.margin
     impacting = c.valid & (approaching | sustained | closed)
     bounce = jnp.where(sustained | ~approaching, 0.0, restitution)
-    b_imp = v_hit.at[:, 0].multiply(1.0 + bounce)
     op_m, diag_m = _flexibility(jac, c, m_inv)
     zero = jnp.zeros_like(gap0)
     imp_sets = sets._replace(enabled=impacting, cohesion=zero, tension=zero)
-    imp = pc.solve(_apply_w, op_m, diag_m, b_imp, imp_sets, jnp.zeros_like(b_imp), params.tol, params.max_iter, momentum)
+    imp = _poisson_impact(op_m, diag_m, v_hit, imp_sets, bounce, params, momentum)
     v_star = vel + groups.apply(m_inv, apply_jacobian_t(jac, c, imp.force, n))
     struck = c.valid & approaching & ~sustained
     clock = impact_clock(t_hit, struck, impacting & (imp.force[:, 0] > 0), c.a, c.b, model.fixed)
