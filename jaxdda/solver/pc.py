@@ -64,11 +64,8 @@ def solve(apply_w: Callable[[Any, jax.Array], jax.Array], operand: Any, w_diag: 
 
     # FISTA until converged or stalled; then semismooth Newton from its best point (a
     # stalled solve: a near-redundant contact set); and again, with FISTA's patience
-    # doubled at each hand-over, so Newton costs a bounded share.
-    def cond(carry):
-        return (carry[2] > tol) & (carry[1] < max_iter)
-
-    # A Newton attempt that finds no better point leaves FISTA's momentum as it was.
+    # doubled at each hand-over, so Newton costs a bounded share. A Newton attempt that
+    # finds no better point leaves FISTA's momentum as it was.
     def cond(carry):
         fista = carry[0]
         return (fista[8] > tol) & (fista[7] < max_iter)
