@@ -153,7 +153,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
 
     # Detection is discrete (which pairs to test): no derivative flows through it.
     contacts, needed = detect(model, *jax.lax.stop_gradient(
-        (centroid, state.rotation, *detection_reach(model, state, params))))
+        (centroid, state.rotation, *detection_reach(model, state, params), params.margin)))
     c = contacts
     gap_now, normal, point = gap_frame(c, centroid, state.rotation)
     jac = jacobians(c, normal, point, gap_now, centroid)

@@ -32,10 +32,13 @@ def bounding_boxes(model: Model, centroid: jax.Array, verts: jax.Array, reach: j
     return lo, hi
 
 
-def detect(model: Model, centroid: jax.Array, rotation: jax.Array, reach: jax.Array, turn: jax.Array):
+def detect(model: Model, centroid: jax.Array, rotation: jax.Array, reach: jax.Array, turn: jax.Array,
+           margin: jax.Array):
     """Contacts whose gap is below the pair's detection distance ``reach[a] + reach[b]``.
 
-    ``turn`` (N,) is the angle each body may turn in the step (widens corner tests).
+    ``turn`` (N,) is the angle each body may turn in the step (widens corner tests);
+    ``margin`` () the gap d0 within which a contact is closed (a vertex this little behind
+    an edge's line touches it, wherever it is).
 
     Returns ``(contacts (C,), needed (5,) int32)``: the slots each buffer needed (candidates,
     pp, pb, bb pairs, contacts); any ``needed > capacity`` means the result is incomplete.
@@ -66,7 +69,8 @@ def detect(model: Model, centroid: jax.Array, rotation: jax.Array, reach: jax.Ar
     groups.append((rec, geo & pp_ok[:, None], pp_i, pp_j))
     rec, geo = particle_polygon(model, centroid, verts, particle, polygon)
     groups.append((rec, geo & pb_ok[:, None], pb_i, pb_j))
-    rec, geo = polygon_polygon(model, verts, bb_i, bb_j, reach[bb_i] + reach[bb_j], turn[bb_i] + turn[bb_j])
+    rec, geo = polygon_polygon(model, verts, bb_i, bb_j, reach[bb_i] + reach[bb_j], turn[bb_i] + turn[bb_j],
+                               margin)
     groups.append((rec, geo & bb_ok[:, None], bb_i, bb_j))
 
     def flatten(rec, geo, pi, pj):

@@ -28,6 +28,13 @@ WEDGE_TOL = 1e-7
 # A polygon vertex may lie this fraction of the smaller body's size behind an edge and
 # still be held by it (recovers from small penetrations without catching back edges).
 PENETRATION_FRACTION = 0.1
+# A vertex behind an edge's line by more than the margin d0 (or this fraction of the
+# smaller body's size, if larger) is held by that edge only if it lies inside the edge's
+# polygon and that edge is (one of) the nearest to it. Behind the line but outside the polygon (beside the edge's extension
+# past a corner) is no overlap at all, and inside, the overlap is the distance to the
+# nearest edge: a constraint on any other edge would throw the vertex out by its distance
+# to that edge's line.
+TOUCH_FRACTION = 1e-9
 
 
 def _cyclic(n_vertices: jax.Array, v_max: int):
@@ -130,13 +137,35 @@ def _vertex_edge_terms(vx, nx, px, vy, ny):
     return s, t, clear
 
 
+def _inside(vx, vy, vyn, mask_y):
+    """Whether each vertex of X (P, Vx, 2) lies inside polygon Y (edges vy -> vyn (P, Vy, 2),
+    real where mask_y (P, Vy)): the parity of a horizontal ray's crossings, (P, Vx)."""
+    px, py = vx[:, :, None, 0], vx[:, :, None, 1]
+    ax, ay, bx, by = vy[:, None, :, 0], vy[:, None, :, 1], vyn[:, None, :, 0], vyn[:, None, :, 1]
+    straddle = (ay > py) != (by > py)
+    x_cross = ax + (py - ay) * (bx - ax) / jnp.where(straddle, by - ay, 1.0)
+    crossings = jnp.sum(straddle & (px < x_cross) & mask_y[:, None, :], -1)
+    return crossings % 2 == 1
+
+
+def _held(s, t, edge_len, inside, real_edges, touch):
+    """Which vertex-edge pairs (P, Vx, Ey) may hold the vertex: in front of the edge's
+    line (to ``touch``), or inside the polygon with this among its nearest edges (by
+    distance to the segment)."""
+    beyond = jnp.maximum(jnp.maximum(-t, t - 1.0), 0.0) * edge_len[:, None, :]
+    dist = jnp.where(real_edges[:, None, :], jnp.sqrt(s * s + beyond * beyond), jnp.inf)
+    nearest = dist <= jnp.min(dist, -1, keepdims=True) * (1.0 + 1e-9) + touch
+    return (s >= -touch) | (inside[:, :, None] & nearest)
+
+
 def polygon_polygon(model: Model, verts: jax.Array, i: jax.Array, j: jax.Array, near_dist: jax.Array,
-                    turn: jax.Array):
+                    turn: jax.Array, margin: jax.Array):
     """Polygons i (A) and j (B): slots (P, 2 V^2): A's vertices on B's edges, then B's on A's.
 
     ``near_dist`` (P,): two vertices closer than this form a vertex-vertex contact, and a
     vertex may project this far beyond an edge's end (it can slide onto the edge in the
     step). ``turn`` (P,): the angle the pair can turn relative to each other in the step.
+    ``margin`` (): the gap d0 within which a contact counts as closed.
     """
     v_max = model.max_vertices
     va, vb = verts[i], verts[j]
@@ -150,7 +179,14 @@ def polygon_polygon(model: Model, verts: jax.Array, i: jax.Array, j: jax.Array, 
     s_ab, t_ab, c_ab = _vertex_edge_terms(va, van, vap, vb, vbn)  # (P, Va, Eb)
     s_ba, t_ba, c_ba = _vertex_edge_terms(vb, vbn, vbp, va, van)  # (P, Vb, Ea)
 
-    pen = -PENETRATION_FRACTION * jnp.minimum(model.bound_radius[i], model.bound_radius[j])[:, None, None]
+    size = jnp.minimum(model.bound_radius[i], model.bound_radius[j])[:, None, None]
+    pen = -PENETRATION_FRACTION * size
+    len_b = jnp.linalg.norm(vbn - vb, axis=-1) + 1e-300
+    len_a = jnp.linalg.norm(van - va, axis=-1) + 1e-300
+    real_a, real_b = model.vertex_mask[i], model.vertex_mask[j]
+    touch = jnp.maximum(TOUCH_FRACTION * size, margin)
+    front_ab = _held(s_ab, t_ab, len_b, _inside(va, vb, vbn, real_b), real_b, touch)  # (P, Va, Eb)
+    front_ba = _held(s_ba, t_ba, len_a, _inside(vb, va, van, real_a), real_a, touch)  # (P, Vb, Ea)
     pair_mask = ma[:, :, None] & mb[:, None, :]
     # Corners closer than the detection distance, or overlapping (then they may be farther
     # apart, each just past the end of the other's edge), form a vertex-vertex contact.
@@ -163,37 +199,37 @@ def polygon_polygon(model: Model, verts: jax.Array, i: jax.Array, j: jax.Array, 
         return jnp.take_along_axis(x, jnp.broadcast_to(idx[:, :, None], x.shape), axis=1)
 
     # Vertex-vertex (a of A near b of B): four candidate vertex-edge pairs; keep the best.
-    # An edge inside a meshed block is no candidate.
+    # An edge inside a meshed block is no candidate, nor one whose line the vertex is
+    # behind from outside its polygon (then it is in front of the other edge at the corner).
+    swap = lambda x: jnp.swapaxes(x, 1, 2)
     cand = jnp.stack([
-        jnp.where(_take1(eb, pb)[:, None, :], gather_e(c_ab, pb), -jnp.inf),  # a on B's edge ending at b
-        jnp.where(eb[:, None, :], c_ab, -jnp.inf),                              # a on B's edge starting at b
-        jnp.where(_take1(ea, pa)[:, :, None], jnp.swapaxes(gather_e(c_ba, pa), 1, 2), -jnp.inf),  # b on A's edge ending at a
-        jnp.where(ea[:, :, None], jnp.swapaxes(c_ba, 1, 2), -jnp.inf),          # b on A's edge starting at a
+        jnp.where(_take1(eb, pb)[:, None, :] & gather_e(front_ab, pb), gather_e(c_ab, pb), -jnp.inf),  # a on B's edge ending at b
+        jnp.where(eb[:, None, :] & front_ab, c_ab, -jnp.inf),                                          # a on B's edge starting at b
+        jnp.where(_take1(ea, pa)[:, :, None] & swap(gather_e(front_ba, pa)), swap(gather_e(c_ba, pa)), -jnp.inf),  # b on A's edge ending at a
+        jnp.where(ea[:, :, None] & swap(front_ba), swap(c_ba), -jnp.inf),                              # b on A's edge starting at a
     ], -1)  # (P, Va, Vb, 4)
-    winner = jnp.argmax(cand, -1)
+    winner = jnp.where(jnp.max(cand, -1) > -jnp.inf, jnp.argmax(cand, -1), -1)
 
     wedge_tol = (jnp.sin(jnp.minimum(turn, 0.5 * jnp.pi)) + WEDGE_TOL)[:, None, None]
 
-    def interior(s, t, clear, near_start, near_end, mask, edge_len):
+    def interior(s, t, clear, front, near_start, near_end, mask, edge_len):
         slack = (near_dist[:, None] / edge_len)[:, None, :]
-        return (mask & ~near_start & ~near_end & (t >= -slack) & (t <= 1 + slack) & (s >= pen)
+        return (mask & ~near_start & ~near_end & (t >= -slack) & (t <= 1 + slack) & (s >= pen) & front
                 & (clear >= -wedge_tol))
 
     # A's vertex a on B's edge e = (b_e -> b_{e+1}).
     near_end_ab = gather_e(near, nb)
     win_end_ab = gather_e(winner, nb)
     vv_ab = (near & (winner == 1)) | (near_end_ab & (win_end_ab == 0))
-    len_b = jnp.linalg.norm(vbn - vb, axis=-1) + 1e-300
-    len_a = jnp.linalg.norm(van - va, axis=-1) + 1e-300
     mask_ab = ma[:, :, None] & eb[:, None, :]
-    ok_ab = interior(s_ab, t_ab, c_ab, near, near_end_ab, mask_ab, len_b) | (vv_ab & mask_ab)
+    ok_ab = interior(s_ab, t_ab, c_ab, front_ab, near, near_end_ab, mask_ab, len_b) | (vv_ab & mask_ab)
     # B's vertex b on A's edge f = (a_f -> a_{f+1}).
     near_t, win_t = jnp.swapaxes(near, 1, 2), jnp.swapaxes(winner, 1, 2)  # (P, Vb, Va)
     near_end_ba = gather_e(near_t, na)
     win_end_ba = gather_e(win_t, na)
     mask_ba = mb[:, :, None] & ea[:, None, :]
     vv_ba = (near_t & (win_t == 3)) | (near_end_ba & (win_end_ba == 2))
-    ok_ba = interior(s_ba, t_ba, c_ba, near_t, near_end_ba, mask_ba, len_a) | (vv_ba & mask_ba)
+    ok_ba = interior(s_ba, t_ba, c_ba, front_ba, near_t, near_end_ba, mask_ba, len_a) | (vv_ba & mask_ba)
 
     la, lb = model.local_vertices[i], model.local_vertices[j]
     vi = jnp.arange(v_max)

@@ -16,7 +16,8 @@ from jaxdda.types import Model, Params, State
 @jax.jit
 def initial_contacts(model: Model, state: State, params: Params):
     n = model.n_bodies
-    c, needed = detect(model, state.centroid, state.rotation, jnp.full((n,), 0.5 * params.margin), jnp.zeros(n))
+    c, needed = detect(model, state.centroid, state.rotation, jnp.full((n,), 0.5 * params.margin), jnp.zeros(n),
+                  params.margin)
     gap, _, point = gap_frame(c, state.centroid, state.rotation)
     return c, gap, point, needed
 
