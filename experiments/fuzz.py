@@ -1,7 +1,7 @@
 """Fuzzing random scenes for 1 000 000 scene-steps (issue 9).
 
     python experiments/fuzz.py [--scene-steps 1000000] [--batch 32] [--steps 50] [--start 0]
-                               [--out experiments/results/fuzz.json]
+                               [--out experiments/results/fuzz.json] [--hours H] [--resume]
 
 Scene k is drawn from ``numpy.random.default_rng(start + k)`` by the generator of
 ``tests/test_fuzz.py`` (disks, rings holding bodies, convex and concave polygons; random
@@ -16,10 +16,17 @@ Writes ``--out`` after every batch: scenes, steps, scene-steps, failures (per in
 and in all), the seeds of the failing scenes with what they broke and the step it first
 broke at, non-converged steps, rates; and a TOML reproducer of each failing scene in
 ``experiments/results/fuzz_failures/seed_<seed>.toml`` (``jaxdda run FILE``).
+
+The run can be split over sittings: ``--hours H`` stops after the batch that passes H
+hours, and ``--resume`` continues the record in ``--out`` from its next seed. A record
+holds the SHA-256 of the engine and of the fuzz generator (``jaxdda/**/*.py``,
+``tests/test_fuzz.py``) and resumes only against the same code, so one record is one
+engine's count.
 """
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import os
 import sys
@@ -43,22 +50,44 @@ def kind_of(message: str) -> str:
     return "other"
 
 
+def code_hash() -> str:
+    """SHA-256 of the engine's and the generator's source, in path order."""
+    h = hashlib.sha256()
+    for path in sorted((ROOT / "jaxdda").rglob("*.py")) + [ROOT / "tests" / "test_fuzz.py"]:
+        h.update(str(path.relative_to(ROOT)).encode() + b"\0" + path.read_bytes() + b"\0")
+    return h.hexdigest()
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--scene-steps", type=int, default=1_000_000)
+    ap.add_argument("--scene-steps", type=int, default=None, help="target (1 000 000; with --resume, a new target)")
     ap.add_argument("--batch", type=int, default=32)
     ap.add_argument("--steps", type=int, default=fz.STEPS)
     ap.add_argument("--start", type=int, default=0, help="seed of the first scene")
     ap.add_argument("--sample", type=int, default=25, help="host overlap check every this many steps")
     ap.add_argument("--out", default=str(ROOT / "experiments" / "results" / "fuzz.json"))
+    ap.add_argument("--hours", type=float, default=float("inf"), help="stop after the batch that passes this")
+    ap.add_argument("--resume", action="store_true", help="continue the record in --out (same code only)")
     args = ap.parse_args(argv)
     out = Path(args.out)
+    ratio_file = out.with_name(out.stem + "_energy_ratios.npy")
     failures_dir = out.parent / "fuzz_failures"
     failures_dir.mkdir(parents=True, exist_ok=True)
-
-    record = {"command": " ".join(["python", "experiments/fuzz.py"] + (argv or sys.argv[1:])),
-              "batch": args.batch, "steps_per_scene": args.steps, "target_scene_steps": args.scene_steps,
-              "start_seed": args.start, "cpus": os.cpu_count(),
+    command = " ".join(["python", "experiments/fuzz.py"] + (argv or sys.argv[1:]))
+    if args.resume:
+        record = json.loads(out.read_text())
+        if record["code_sha256"] != code_hash():
+            raise SystemExit(f"{out} counts another version of jaxdda/ or tests/test_fuzz.py; start a new record")
+        if (record["batch"], record["steps_per_scene"]) != (args.batch, args.steps):
+            raise SystemExit(f"{out} ran --batch {record['batch']} --steps {record['steps_per_scene']}")
+        if args.scene_steps is not None:
+            record["target_scene_steps"] = args.scene_steps
+        return run(args, record, np.load(ratio_file).tolist(), out, ratio_file, failures_dir, command)
+    for stale in failures_dir.glob("seed_*.toml"):  # reproducers of the record this one replaces
+        stale.unlink()
+    record = {"command": command, "code_sha256": code_hash(), "sittings": [],
+              "batch": args.batch, "steps_per_scene": args.steps, "target_scene_steps": args.scene_steps or 1_000_000,
+              "start_seed": args.start, "next_seed": args.start, "cpus": os.cpu_count(),
               "scenes": 0, "steps": 0, "scene_steps": 0, "failures": 0,
               "failures_by_invariant": {k: 0 for k in KINDS}, "failing": [],
               "scenes_by_kind": {"box": 0, "free": 0}, "nonconverged_steps": 0, "scenes_with_nonconverged": 0,
@@ -66,10 +95,19 @@ def main(argv=None) -> int:
               "max_energy_ratio": 0.0, "max_energy_growth": 0.0, "max_momentum_ratio": 0.0,
               "max_angular_rel": 0.0, "energy_ratio_quantiles": {},
               "seconds": 0.0, "compile_and_first_batch_s": None, "scene_steps_per_s": None, "done": False}
-    ratios = []
+    return run(args, record, [], out, ratio_file, failures_dir, command)
+
+
+def run(args, record, ratios, out, ratio_file, failures_dir, command) -> int:
+    """Batches from ``record['next_seed']`` until the target or ``--hours``; writes after each."""
     t0 = time.perf_counter()
-    seed = args.start
-    while record["scene_steps"] < args.scene_steps:
+    seed = record["next_seed"]
+    sitting = {"command": command, "first_seed": seed, "scene_steps": 0, "seconds": 0.0,
+               "compile_and_first_batch_s": None, "scene_steps_per_s": None}
+    seconds_before = record["seconds"]
+    while record["scene_steps"] < record["target_scene_steps"] and (time.perf_counter() - t0) < 3600 * args.hours:
+        if not sitting["scene_steps"]:
+            record["sittings"].append(sitting)
         tb = time.perf_counter()
         seeds = list(range(seed, seed + args.batch))
         specs = [fz.draw_spec(fz.RngDraw(s)) for s in seeds]
@@ -77,6 +115,8 @@ def main(argv=None) -> int:
         acc, poses, _ = fz.run_batch(scenes, args.steps, sample=args.sample)
         bad = fz.check_batch(scenes, acc, poses, args.steps)
         seed += args.batch
+        record["next_seed"] = seed
+        sitting["scene_steps"] += len(scenes) * args.steps
         record["scenes"] += len(scenes)
         record["steps"] += args.steps
         record["scene_steps"] += len(scenes) * args.steps
@@ -101,19 +141,23 @@ def main(argv=None) -> int:
         q = np.quantile(np.asarray(ratios), [0.5, 0.9, 0.99, 1.0])
         record["energy_ratio_quantiles"] = dict(zip(("50%", "90%", "99%", "max"), q.tolist()))
         now = time.perf_counter()
-        if record["compile_and_first_batch_s"] is None:
-            record["compile_and_first_batch_s"] = now - tb
+        if sitting["compile_and_first_batch_s"] is None:
+            sitting["compile_and_first_batch_s"] = now - tb
         else:
-            done_after_first = record["scene_steps"] - args.batch * args.steps
-            record["scene_steps_per_s"] = done_after_first / (now - t0 - record["compile_and_first_batch_s"])
-        record["seconds"] = now - t0
+            done_after_first = sitting["scene_steps"] - args.batch * args.steps
+            sitting["scene_steps_per_s"] = done_after_first / (now - t0 - sitting["compile_and_first_batch_s"])
+        sitting["seconds"] = now - t0
+        record["seconds"] = seconds_before + sitting["seconds"]
+        record["compile_and_first_batch_s"] = record["compile_and_first_batch_s"] or sitting["compile_and_first_batch_s"]
+        record["scene_steps_per_s"] = sitting["scene_steps_per_s"]
+        np.save(ratio_file, np.asarray(ratios))
         out.write_text(json.dumps(record, indent=1) + "\n")
         rate = record["scene_steps_per_s"]
-        left = (args.scene_steps - record["scene_steps"]) / rate if rate else float("nan")
+        left = (record["target_scene_steps"] - record["scene_steps"]) / rate if rate else float("nan")
         print(f"{record['scenes']} scenes, {record['scene_steps']} scene-steps, {record['failures']} failures "
               f"{record['failures_by_invariant']}, {record['nonconverged_steps']} non-converged steps; "
               f"{rate or 0:.0f} scene-steps/s, {left / 3600:.2f} h left", flush=True)
-    record["done"] = True
+    record["done"] = record["scene_steps"] >= record["target_scene_steps"]
     out.write_text(json.dumps(record, indent=1) + "\n")
     print(json.dumps({k: record[k] for k in ("scenes", "steps", "scene_steps", "failures",
                                              "failures_by_invariant", "nonconverged_steps")}))
