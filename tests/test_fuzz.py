@@ -459,9 +459,10 @@ def reproducer(scene, steps: int, folder) -> Path:
 BATCH, STEPS, SAMPLE = 16, 50, 25  # SAMPLE: poses checked on the host every this many steps
 # Scenes experiments/fuzz.py once failed on: energy gained while bodies turn about
 # sustained contacts (32, 58, 112, 222), by Newton's impact law with a sticking
-# contact (62, Kane's paradox; docs/design.md, "Energy"), and a corner held at its
-# distance to the line of an edge it lay beside (82; tests/test_narrowphase.py).
-REGRESSION_SEEDS = (32, 58, 62, 82, 112, 222)
+# contact (62, Kane's paradox; docs/design.md, "Energy"), a corner held at its
+# distance to the line of an edge it lay beside (82) and a corner entering a notch held
+# on one of its edges only (194; both in tests/test_narrowphase.py).
+REGRESSION_SEEDS = (32, 58, 62, 82, 112, 194, 222)
 
 
 @settings(max_examples=1, derandomize=True, deadline=None, database=None, phases=[Phase.explicit, Phase.generate],

@@ -1,7 +1,8 @@
 """Polygon-polygon contact geometry: a vertex is held at its real clearance or overlap,
 never at its distance to the line of an edge it lies beside, nor to the line of a
 farther edge than the one it entered by (fuzz seed 82: such a gap of -0.14 m threw a
-light polygon out at 138 m/s)."""
+light polygon out at 138 m/s); a corner entering a notch meets both its edges (seed 194:
+held on one, it went 12 mm into the other)."""
 import jax.numpy as jnp
 import numpy as np
 
@@ -20,11 +21,11 @@ def _wedge(tip, lo_deg, hi_deg, length=0.5):
     return [tuple(tip), tuple(tip + length * u(lo_deg)), tuple(tip + length * u(hi_deg))]
 
 
-def _gaps(triangle, reach=0.4):
-    """Sorted gaps of every contact detected between A and the triangle B where it is
-    given (world coordinates; the pair's detection distance ``reach``)."""
+def _gaps(triangle, reach=0.4, first=SQUARE):
+    """Sorted gaps of every contact detected between A (``first``) and the triangle B
+    where they are given (world coordinates; the pair's detection distance ``reach``)."""
     sb = jaxdda.SceneBuilder(dt=1e-3)
-    sb.add_polygon(SQUARE, density=1.0)
+    sb.add_polygon(first, density=1.0)
     sb.add_polygon([(x + FAR, y) for x, y in triangle], density=1.0)
     scene = sb.build()
     centroid = scene.state.centroid - jnp.array([[0.0, 0.0], [FAR, 0.0]])
@@ -55,3 +56,15 @@ def test_a_corner_inside_is_held_by_its_nearest_edge():
     gaps = _gaps(_wedge((0.49, 0.47), 30.0, 70.0))
     assert np.isclose(gaps[0], -0.01, rtol=0, atol=1e-12), gaps
     assert np.sum(gaps < 0) == 1, gaps
+
+
+def test_a_corner_entering_a_notch_meets_both_its_edges():
+    # A: a block with a V-notch in its top (reflex vertex (0, -0.5), edges of slope 1/2);
+    # B: a spike whose tip is 0.05 above the notch's vertex. Both notch edges are
+    # 0.05 / sqrt(1.25) from the tip; held on one only, it slides into the other.
+    notched = [(-1.0, -1.0), (1.0, -1.0), (1.0, 0.0), (0.0, -0.5), (-1.0, 0.0)]
+    spike = [(0.0, -0.45), (0.3, 0.5), (-0.3, 0.5)]
+    gaps = _gaps(spike, first=notched)
+    clearance = 0.05 / np.sqrt(1.25)
+    assert np.sum(np.isclose(gaps, clearance, rtol=0, atol=1e-12)) == 2, gaps
+    assert np.all(gaps > clearance - 1e-12), gaps

@@ -148,6 +148,13 @@ def _inside(vx, vy, vyn, mask_y):
     return crossings % 2 == 1
 
 
+def _reflex(prev, v, nxt):
+    """Reflex vertices (turn right by more than 1e-9 rad on a counter-clockwise outline)."""
+    d0, d1 = v - prev, nxt - v
+    cross = d0[..., 0] * d1[..., 1] - d0[..., 1] * d1[..., 0]
+    return cross < -1e-9 * jnp.linalg.norm(d0, axis=-1) * jnp.linalg.norm(d1, axis=-1)
+
+
 def _held(s, t, edge_len, inside, real_edges, touch):
     """Which vertex-edge pairs (P, Vx, Ey) may hold the vertex: in front of the edge's
     line (to ``touch``), or inside the polygon with this among its nearest edges (by
@@ -172,10 +179,13 @@ def polygon_polygon(model: Model, verts: jax.Array, i: jax.Array, j: jax.Array, 
     # Features: the edges that are contact surfaces and their start vertices (in a meshed
     # block, its boundary edges, and each boundary node once).
     ea, eb = model.edge_mask[i], model.edge_mask[j]
-    ma, mb = ea, eb
     na, pa = _cyclic(model.n_vertices[i], v_max)
     nb, pb = _cyclic(model.n_vertices[j], v_max)
     van, vap, vbn, vbp = _take(va, na), _take(va, pa), _take(vb, nb), _take(vb, pb)
+    # Corners that can touch: not reflex. Near a reflex vertex a polygon covers more than
+    # a half-plane, so no body touches it there without overlap; a corner entering the
+    # notch meets its two edges (two vertex-edge contacts), not the vertex.
+    ma, mb = ea & ~_reflex(vap, va, van), eb & ~_reflex(vbp, vb, vbn)
     s_ab, t_ab, c_ab = _vertex_edge_terms(va, van, vap, vb, vbn)  # (P, Va, Eb)
     s_ba, t_ba, c_ba = _vertex_edge_terms(vb, vbn, vbp, va, van)  # (P, Vb, Ea)
 
