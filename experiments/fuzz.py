@@ -69,7 +69,7 @@ def main(argv=None) -> int:
     ap.add_argument("--hours", type=float, default=float("inf"), help="stop after the batch that passes this")
     ap.add_argument("--resume", action="store_true", help="continue the record in --out (same code only)")
     args = ap.parse_args(argv)
-    out = Path(args.out)
+    out = Path(args.out).resolve()
     ratio_file = out.with_name(out.stem + "_energy_ratios.npy")
     failures_dir = out.parent / "fuzz_failures"
     failures_dir.mkdir(parents=True, exist_ok=True)
