@@ -30,10 +30,10 @@ WEDGE_TOL = 1e-7
 PENETRATION_FRACTION = 0.1
 # A vertex behind an edge's line by more than the margin d0 (or this fraction of the
 # smaller body's size, if larger) is held by that edge only if it lies inside the edge's
-# polygon and that edge is (one of) the nearest to it. Behind the line but outside the polygon (beside the edge's extension
-# past a corner) is no overlap at all, and inside, the overlap is the distance to the
-# nearest edge: a constraint on any other edge would throw the vertex out by its distance
-# to that edge's line.
+# polygon and that edge is (one of) the nearest to it. Behind the line but outside the
+# polygon (beside the edge's extension past a corner) is no overlap at all, and inside,
+# the overlap is the distance to the nearest edge: a constraint on any other edge would
+# throw the vertex out by its distance to that edge's line.
 TOUCH_FRACTION = 1e-9
 
 
