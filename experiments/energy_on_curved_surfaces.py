@@ -1,6 +1,11 @@
-"""Energy of a disk rolling on a flat, a convex and a concave (ring hole) surface (the
-six energy failures of experiments/fuzz.py on engine 31dd2cc, seeds 191, 531, 567, 598,
-905, 958, all have a body inside a ring's hole; docs/design.md, "Energy").
+"""Energy of a disk rolling on a flat, a convex and a concave (ring hole) surface
+(docs/design.md, "Energy": a rolling contact on a curved surface keeps an overlap).
+
+The six energy failures of experiments/fuzz.py on engine 31dd2cc (seeds 191, 531, 567,
+598, 905, 958) all have a body inside a ring's hole, which led here. Most of them turned
+out to be impacts timed on the linearised gap, which misses the hole's curvature (now
+integrate.exact_impact_time). What this script measures is a smaller gain that remains:
+an overlap that a rolling contact keeps from step to step.
 
 A disk (r = 0.2 m, 1 kg/m^2) with friction mu on a fixed support, released from rest:
 down a 30 deg incline, off the top of a fixed disk (r = 1, 5 deg from the apex), and

@@ -18,9 +18,9 @@ from jaxdda.contact.adjoint import adjoint_partner
 from jaxdda.contact.detect import contact_materials, detect, world_vertices
 from jaxdda.contact.keys import lookup
 from jaxdda.contact.kinematics import (apply_jacobian, apply_jacobian_t, clockwise, discrete_gradient, gap_change,
-                                       gap_frame, jacobians)
-from jaxdda.integrate import (common_impact_time, free_displacement, impact_clock, impact_time, matvec, mesh_clock,
-                              newmark_velocity)
+                                       gap_change_at, gap_frame, gap_frame_at, jacobians, jacobians_at)
+from jaxdda.integrate import (common_impact_time, exact_impact_time, free_displacement,
+                              impact_clock, matvec, mesh_clock, newmark_velocity)
 from jaxdda.groups import Flexibility
 from jaxdda.solver import pc
 from jaxdda.solver.sets import ContactSets, sticking
@@ -188,10 +188,27 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     # A gap within round-off of the coordinates it comes from is a touch (64 ulp).
     reach = jnp.maximum(jnp.max(jnp.abs(state.origin[c.a]), -1), jnp.max(jnp.abs(state.origin[c.b]), -1))
     touch = 64.0 * jnp.finfo(gap0.dtype).eps * (reach + model.bound_radius[c.a] + model.bound_radius[c.b])
-    t_hit, hits = impact_time(gap0, v_rel[:, 0], a_rel[:, 0], dt, touch)
+    # The time of impact on the exact gap along the predicted path (a concave contact
+    # closes sooner, a convex one later than its linearisation says), and each contact's
+    # frame and relative velocity at that instant: the impulse acts there, so Poisson's
+    # law dissipates in the configuration it acts in.
+    def path(t, side):  # each contact's side's motion (shift, turn, strain) and velocity at time t
+        body = c.a if side == 0 else c.b
+        u = vel[body] * t[:, None] + 0.5 * accel[body] * (t ** 2)[:, None]
+        return (u[:, :2], u[:, 2], u[:, 3:]), vel[body] + accel[body] * t[:, None]
+
+    def gap_on_path(t):
+        return gap0 + gap_change_at(c, centroid, state.rotation, path(t, 0)[0], path(t, 1)[0])
+
+    t_hit, hits = exact_impact_time(gap0, v_rel[:, 0], a_rel[:, 0], dt, touch, gap_on_path)
     t_hit = jnp.where(hits & ~sustained, t_hit, 0.0)
     t_hit = common_impact_time(t_hit, c.valid & hits & ~sustained, c.a, c.b, n, dt)
-    v_hit = v_rel + a_rel * t_hit[:, None]
+    (move_a, vel_a), (move_b, vel_b) = path(t_hit, 0), path(t_hit, 1)
+    pose_a = (centroid[c.a] + move_a[0], state.rotation[c.a] + move_a[1])
+    pose_b = (centroid[c.b] + move_b[0], state.rotation[c.b] + move_b[1])
+    gap_hit, normal_hit, point_hit = gap_frame_at(c, pose_a, pose_b)
+    jac_hit = jacobians_at(c, normal_hit, point_hit, gap_hit, pose_a[0], pose_b[0])
+    v_hit = jnp.einsum("cij,cj->ci", jac_hit[:, 0], vel_a) + jnp.einsum("cij,cj->ci", jac_hit[:, 1], vel_b)
     # A closed contact (gap within the margin d0) that does not approach takes part as a
     # plain constraint, v+_n >= 0: an impulse passes through a touching chain (B hits A
     # touching C: with e = 0 all three move on at one speed) instead of A being driven
@@ -200,11 +217,11 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     closed = gap0 <= params.margin
     impacting = c.valid & (approaching | sustained | closed)
     bounce = jnp.where(sustained | ~approaching, 0.0, restitution)
-    op_m, diag_m = _flexibility(jac, c, m_inv)
+    op_m, diag_m = _flexibility(jac_hit, c, m_inv)
     zero = jnp.zeros_like(gap0)
     imp_sets = sets._replace(enabled=impacting, cohesion=zero, tension=zero)
     imp = _poisson_impact(op_m, diag_m, v_hit, imp_sets, bounce, params, momentum)
-    v_star = vel + groups.apply(m_inv, apply_jacobian_t(jac, c, imp.force, n))
+    v_star = vel + groups.apply(m_inv, apply_jacobian_t(jac_hit, c, imp.force, n))
     struck = c.valid & approaching & ~sustained
     clock = impact_clock(t_hit, struck, impacting & (imp.force[:, 0] > 0), c.a, c.b, model.fixed)
     clock = mesh_clock(model.mesh, clock)
@@ -258,10 +275,16 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     end_velocity = apply_jacobian(jac_mid, c, 0.5 * dt * v_star)
     end_velocity = end_velocity.at[:, 1].set(jnp.where(held, 0.0, end_velocity[:, 1]))
     b_con = apply_jacobian(jac_mid, c, d_base - shift) - end_velocity
+    # A velocity-level row's force does work p (G + J (dt / 2) v*): its shear force and
+    # rolling moment may not push along the slip and roll they start the step with (one
+    # that stops inside the step and would reverse ends it slipping back instead, by at
+    # most the drive over one step). Slips within round-off of the coordinates are none.
+    start = end_velocity[:, 1:] * jnp.stack([jnp.ones_like(touch), model.bound_radius[c.a] + model.bound_radius[c.b]], -1)
+    con_sets = sets._replace(opposes=jnp.where(jnp.abs(start) > touch[:, None], jnp.sign(start), 0.0))
     b_con = b_con.at[:, 0].set(gap_pred - apply_jacobian(jac_mid, c, d_pred - d_base)[:, 0])
     op_k, diag_k = _flexibility(jac_mid, c, k_inv)
     force_scale = momentum / dt
-    con = pc.solve(_apply_w, op_k, diag_k, b_con, sets, p0, params.tol, params.max_iter, force_scale)
+    con = pc.solve(_apply_w, op_k, diag_k, b_con, con_sets, p0, params.tol, params.max_iter, force_scale)
 
     # 3. Cement: an inextensible joint (hypothesis ii) that still opens under its full
     # share of the strength has failed (eq. 63); it never heals (hypothesis iv). The
@@ -307,7 +330,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     def to_global(p, nrm):
         return p[:, :1] * nrm + p[:, 1:2] * clockwise(nrm)
 
-    force = jnp.where(c.valid[:, None], to_global(imp.force / dt, normal) + to_global(con.force, normal_mid), 0.0)
+    force = jnp.where(c.valid[:, None], to_global(imp.force / dt, normal_hit) + to_global(con.force, normal_mid), 0.0)
     report = ContactReport(
         valid=c.valid, a=c.a, b=c.b, point=point_mid, normal=normal_mid,
         normal_force=jnp.sum(force * normal_mid, -1), shear_force=jnp.sum(force * clockwise(normal_mid), -1),

@@ -37,11 +37,12 @@ def clockwise(n: jax.Array) -> jax.Array:
     return jnp.stack([n[..., 1], -n[..., 0]], -1)
 
 
-def _feature_points(c: Contacts, centroid: jax.Array, rotation: jax.Array):
-    """World positions of a's point, and of b's point (or edge start) and edge end."""
-    xa = to_world(centroid[c.a], rotation[c.a], c.pa)
-    xq = to_world(centroid[c.b], rotation[c.b], c.qb)
-    xe = to_world(centroid[c.b], rotation[c.b], c.eb)
+def _feature_points(c: Contacts, pose_a, pose_b):
+    """World positions of a's point, and of b's point (or edge start) and edge end, with
+    each side's (centroid, rotation) given per contact ((C, 2), (C,))."""
+    xa = to_world(*pose_a, c.pa)
+    xq = to_world(*pose_b, c.qb)
+    xe = to_world(*pose_b, c.eb)
     return xa, xq, xe
 
 
@@ -51,7 +52,13 @@ def gap_frame(c: Contacts, centroid: jax.Array, rotation: jax.Array):
     ``centroid`` (N, 2) and ``rotation`` (N,) may be any configuration: the gap is exact
     (nonlinear) in the poses, which the step uses to evaluate it at the predictor.
     """
-    xa, xq, xe = _feature_points(c, centroid, rotation)
+    return gap_frame_at(c, (centroid[c.a], rotation[c.a]), (centroid[c.b], rotation[c.b]))
+
+
+def gap_frame_at(c: Contacts, pose_a, pose_b):
+    """``gap_frame`` with each contact's own poses of its two bodies (centroid (C, 2),
+    rotation (C,)): e.g. the configuration at each contact's impact time."""
+    xa, xq, xe = _feature_points(c, pose_a, pose_b)
 
     d_unit, dist = _safe_unit(xa - xq)
     t_unit, _ = _safe_unit(xe - xq)
@@ -94,18 +101,25 @@ def gap_change(c: Contacts, centroid: jax.Array, rotation: jax.Array, shift: jax
     to coordinates of 1e2 m (the contact stage multiplies gaps by 2 M / dt^2).
     """
     strain = jnp.zeros(turn.shape + (3,)) if strain is None else strain
-    strained = jnp.any(strain != 0, -1)
+    return gap_change_at(c, centroid, rotation, (shift[c.a], turn[c.a], strain[c.a]),
+                         (shift[c.b], turn[c.b], strain[c.b]))
 
-    def moved(body, local):
+
+def gap_change_at(c: Contacts, centroid: jax.Array, rotation: jax.Array, motion_a, motion_b) -> jax.Array:
+    """``gap_change`` with each contact's own motion of its two bodies from (centroid,
+    rotation) (N, ...): (shift (C, 2), turn (C,), strain (C, 3)) per side, e.g. each body's
+    free motion up to the contact's own impact time."""
+    def moved(body, local, motion):
+        shift, turn, strain = motion
         offset = to_world(jnp.zeros_like(local), rotation[body], local)
-        stretch = jnp.einsum("cij,cj->ci", strain_tensor(strain[body]), offset)
-        return shift[body] + _rotation_increment(rotation[body], turn[body], local) + stretch
+        stretch = jnp.einsum("cij,cj->ci", strain_tensor(strain), offset)
+        return shift + _rotation_increment(rotation[body], turn, local) + stretch
 
-    ua, uq = moved(c.a, c.pa), moved(c.b, c.qb)
-    xa, xq, xe = _feature_points(c, centroid, rotation)
+    ua, uq = moved(c.a, c.pa, motion_a), moved(c.b, c.qb, motion_b)
+    xa, xq, xe = _feature_points(c, (centroid[c.a], rotation[c.a]), (centroid[c.b], rotation[c.b]))
     r, dr = xa - xq, ua - uq
-    d_ra = _radius_change(c.ra, turn[c.a], strain[c.a])
-    d_rb = _radius_change(c.rb, turn[c.b], strain[c.b])
+    d_ra = _radius_change(c.ra, motion_a[1], motion_a[2])
+    d_rb = _radius_change(c.rb, motion_b[1], motion_b[2])
 
     # Points: |r + dr| - |r| = (2 r.dr + |dr|^2) / (|r + dr| + |r|).
     rr, rn = _safe_unit(r)[1], _safe_unit(r + dr)[1]
@@ -113,17 +127,24 @@ def gap_change(c: Contacts, centroid: jax.Array, rotation: jax.Array, shift: jax
     dist_change = (2.0 * jnp.sum(r * dr, -1) + jnp.sum(dr * dr, -1)) / jnp.where(den > 0, den, 1.0)
     # Lines: n' . (r + dr) - n . r with n' = R(turn_b) n (rigid b), or the normal of the
     # strained edge (R(turn_b) + E_b) t.
+    turn_b, strain_b = motion_b[1], motion_b[2]
     t_unit, _ = _safe_unit(xe - xq)
     n = clockwise(t_unit)
-    dn = _rotation_increment(jnp.zeros_like(turn[c.b]), turn[c.b], n)
-    t_new = clockwise(n + dn) * -1.0 + jnp.einsum("cij,cj->ci", strain_tensor(strain[c.b]), t_unit)
-    dn = jnp.where(strained[c.b][:, None], clockwise(_safe_unit(t_new)[0]) - n, dn)
+    dn = _rotation_increment(jnp.zeros_like(turn_b), turn_b, n)
+    t_new = clockwise(n + dn) * -1.0 + jnp.einsum("cij,cj->ci", strain_tensor(strain_b), t_unit)
+    dn = jnp.where(jnp.any(strain_b != 0, -1)[:, None], clockwise(_safe_unit(t_new)[0]) - n, dn)
     line_change = jnp.sum(dn * (r + dr), -1) + jnp.sum(n * dr, -1) - d_ra
     return jnp.where(c.btype == B_LINE, line_change,
                      jnp.where(c.btype == B_HOLE, d_rb - d_ra - dist_change, dist_change - d_ra - d_rb))
 
 
 def jacobians(c: Contacts, normal: jax.Array, point: jax.Array, gap: jax.Array, centroid: jax.Array) -> jax.Array:
+    """Contact Jacobians at the bodies' centroids (N, 2): ``jacobians_at`` of centroid[a], centroid[b]."""
+    return jacobians_at(c, normal, point, gap, centroid[c.a], centroid[c.b])
+
+
+def jacobians_at(c: Contacts, normal: jax.Array, point: jax.Array, gap: jax.Array, centroid_a: jax.Array,
+                 centroid_b: jax.Array) -> jax.Array:
     """Contact Jacobians (C, 2 sides, 3, 6): rows (n, tau) of s * [n, tau]^T T(x) (eq. 10),
     and the rolling row: the rotation dof theta (eqs. 13-15, 54).
 
@@ -135,8 +156,8 @@ def jacobians(c: Contacts, normal: jax.Array, point: jax.Array, gap: jax.Array, 
     """
     frame = jnp.stack([normal, clockwise(normal)], -2)  # (C, 2, 2) rows n, tau
     half = (0.5 * gap)[:, None] * normal
-    ta = shape_function(point + half, centroid[c.a])
-    tb = shape_function(point - half, centroid[c.b])
+    ta = shape_function(point + half, centroid_a)
+    tb = shape_function(point - half, centroid_b)
     roll = jnp.broadcast_to(jnp.eye(ta.shape[-1])[2], ta.shape[:1] + (1, ta.shape[-1]))
     return jnp.stack([jnp.concatenate([frame @ ta, roll], 1), -jnp.concatenate([frame @ tb, roll], 1)], 1)
 

@@ -7,6 +7,10 @@ resistance moment. The set (frozen at a normal force p_n^0, see ``project``) is
     |p_t| <= c_k + mu p_n^0+       (eq. 19: Mohr-Coulomb with cohesion)
     |m_r| <= delta p_n^0+          (eqs. 55-62: rolling resistance of a particle)
 
+and, where ``opposes`` gives the sign s of a row's slip (or roll) at the step's start,
+s p_t <= 0 (s m_r <= 0): a velocity-level row's force may not push along that slip (see
+``ContactSets.opposes``).
+
 Adjoint contacts (two vertex-edge contacts of one edge-edge interface) share one cohesion
 c = c_1 + c_2 (eqs. 42-45) and one tensile strength t = t_1 + t_2 (eqs. 70-73). The paper
 fixes the ratio k = c_1 / c_2 at 1 and lets it settle over the compatibility iteration;
@@ -35,6 +39,11 @@ class ContactSets(NamedTuple):
     tension: jax.Array  # (C,) t of the interface, 0 unless an intact cemented joint (shared)
     rolling: jax.Array  # (C,) delta, 0 for contacts without a particle
     partner: jax.Array  # (C,) int32 adjoint contact, -1 for none (a symmetric relation)
+    # (C, 2) sign (-1, 0, 1) of the shear slip and the roll at the step's start that the
+    # shear force and rolling moment must not push along, 0 for no restriction; None: none.
+    # On a velocity-level row (G = dt/2 J v+) the force does work p (G + dt/2 J v*); the
+    # restriction makes the second part dissipate too (docs/design.md, Energy).
+    opposes: jax.Array | None = None
 
 
 def _share(excess, s, excess_p, s_p, budget):
@@ -54,6 +63,13 @@ def _share(excess, s, excess_p, s_p, budget):
     lam = jnp.where(both <= jnp.minimum(bp, bp_p), both, one)
     shrunk = jnp.where(budget > 0, jnp.maximum(excess - jnp.maximum(lam, 0.0) * s, 0.0), 0.0)
     return jnp.where(total > budget, shrunk, excess)
+
+
+def _clip(y: jax.Array, bound: jax.Array, opposes: jax.Array | None) -> jax.Array:
+    """y within [-bound, bound], and of the sign opposite to ``opposes`` where it is not 0."""
+    if opposes is None:
+        return jnp.clip(y, -bound, bound)
+    return jnp.clip(y, jnp.where(opposes < 0, 0.0, -bound), jnp.where(opposes > 0, 0.0, bound))
 
 
 def project(y: jax.Array, scale: jax.Array, sets: ContactSets, normal: jax.Array | None = None) -> jax.Array:
@@ -82,10 +98,10 @@ def project(y: jax.Array, scale: jax.Array, sets: ContactSets, normal: jax.Array
     fric = sets.friction * p_n / jnp.where(s_t > 0, s_t, 1.0)
     over = jnp.maximum(jnp.abs(y[:, 1]) - fric, 0.0)
     bound_t = fric + _share(over, s_t, pair(over, sets.cohesion), pair(s_t), sets.cohesion)
-    y_t = jnp.clip(y[:, 1], -bound_t, bound_t)
+    y_t = _clip(y[:, 1], bound_t, None if sets.opposes is None else sets.opposes[:, 0])
     # Rolling moment.
     bound_m = sets.rolling * p_n / jnp.where(s_m > 0, s_m, 1.0)
-    y_m = jnp.clip(y[:, 2], -bound_m, bound_m)
+    y_m = _clip(y[:, 2], bound_m, None if sets.opposes is None else sets.opposes[:, 1])
     return jnp.where(sets.enabled[:, None], jnp.stack([y_n, y_t, y_m], -1), 0.0)
 
 
