@@ -273,12 +273,15 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     held = sticking(p0, sets) & ~((imp.force[:, 0] > 0) & ~sticking(imp.force, imp_sets))
     held = held & jnp.where(sets.partner >= 0, held[jnp.maximum(sets.partner, 0)], True)  # an interface as one
     end_velocity = apply_jacobian(jac_mid, c, 0.5 * dt * v_star)
-    end_velocity = end_velocity.at[:, 1].set(jnp.where(held, 0.0, end_velocity[:, 1]))
+    # A velocity-level row's force does work p (G + J (dt / 2) v*). Where last step's force
+    # already pushed along the slip (or roll) this step starts with, the row is taken at
+    # position level too (its work p G dissipates, and it can stick). Elsewhere the force may
+    # not push along that start slip: one that stops inside the step and would reverse ends
+    # it slipping back instead, by at most the drive over one step (docs/design.md, Energy).
+    # Slips within round-off of the coordinates are none.
+    positional = jnp.stack([held, jnp.zeros_like(held)], -1) | (p0[:, 1:] * end_velocity[:, 1:] > 0)
+    end_velocity = end_velocity.at[:, 1:].set(jnp.where(positional, 0.0, end_velocity[:, 1:]))
     b_con = apply_jacobian(jac_mid, c, d_base - shift) - end_velocity
-    # A velocity-level row's force does work p (G + J (dt / 2) v*): its shear force and
-    # rolling moment may not push along the slip and roll they start the step with (one
-    # that stops inside the step and would reverse ends it slipping back instead, by at
-    # most the drive over one step). Slips within round-off of the coordinates are none.
     start = end_velocity[:, 1:] * jnp.stack([jnp.ones_like(touch), model.bound_radius[c.a] + model.bound_radius[c.b]], -1)
     con_sets = sets._replace(opposes=jnp.where(jnp.abs(start) > touch[:, None], jnp.sign(start), 0.0))
     b_con = b_con.at[:, 0].set(gap_pred - apply_jacobian(jac_mid, c, d_pred - d_base)[:, 0])

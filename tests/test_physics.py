@@ -150,7 +150,11 @@ def test_block_sliding_up_an_incline_stops_without_gaining_energy():
     run = jaxdda.simulate(sb.build(), 60)
     a = G * (math.sin(th) + mu * math.cos(th))
     e = jaxdda.energy(run)["total"]
-    assert np.diff(e).max() <= 64 * np.finfo(float).eps * e[0]
+    # per step: round-off of the energy, plus the contact solve's tolerance (1e-12 of the
+    # impulse scale m v0) times the speed scale, with tests/test_fuzz.py's slack of 10.
+    # Friction pushing along the slip in the stopping step gained 1.9e-4 J.
+    m = 2.0
+    assert np.diff(e).max() <= 64 * np.finfo(float).eps * e[0] + 10 * 1e-12 * m * v0 * v0
     rest = run.time > v0 / a + 2 * dt
     assert abs(run.centroid[-1, 0, 0] - 0.5 - v0 ** 2 / (2 * a)) <= G * dt ** 2
     assert np.abs(run.velocity[rest, 0]).max() < 1e-9
