@@ -279,7 +279,9 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     # not push along that start slip: one that stops inside the step and would reverse ends
     # it slipping back instead, by at most the drive over one step (docs/design.md, Energy).
     # Slips within round-off of the coordinates are none.
-    positional = jnp.stack([held, jnp.zeros_like(held)], -1) | (p0[:, 1:] * end_velocity[:, 1:] > 0)
+    along = p0[:, 1:] * end_velocity[:, 1:] > 0
+    along = along | jnp.where(sets.partner[:, None] >= 0, along[jnp.maximum(sets.partner, 0)], False)  # an interface as one
+    positional = jnp.stack([held, jnp.zeros_like(held)], -1) | along
     end_velocity = end_velocity.at[:, 1:].set(jnp.where(positional, 0.0, end_velocity[:, 1:]))
     b_con = apply_jacobian(jac_mid, c, d_base - shift) - end_velocity
     start = end_velocity[:, 1:] * jnp.stack([jnp.ones_like(touch), model.bound_radius[c.a] + model.bound_radius[c.b]], -1)
