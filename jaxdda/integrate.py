@@ -95,6 +95,17 @@ def common_impact_time(t_hit: jax.Array, struck: jax.Array, a: jax.Array, b: jax
     return jnp.where(struck & (t_hit - near <= SIMULTANEITY * dt), near, t_hit)
 
 
+def strike_time(t_hit: jax.Array, striking: jax.Array, a: jax.Array, b: jax.Array, fixed: jax.Array) -> jax.Array:
+    """Per contact (C,): the earliest impact time (``t_hit`` of ``striking`` contacts) of
+    either of its free bodies; 0 where neither is struck. A contact that strikes nothing
+    itself (a resting or touching one) takes part in the impacts at that instant."""
+    n = fixed.shape[0]
+    t = jnp.where(striking, t_hit, jnp.inf)
+    first = jnp.where(fixed, jnp.inf, jnp.minimum(jax.ops.segment_min(t, a, n), jax.ops.segment_min(t, b, n)))
+    at = jnp.minimum(first[a], first[b])
+    return jnp.where(jnp.isfinite(at), at, 0.0)
+
+
 def impact_clock(t_hit: jax.Array, struck: jax.Array, carrying: jax.Array, a: jax.Array, b: jax.Array,
                  fixed: jax.Array) -> jax.Array:
     """Per body (N,): the time in the step at which its velocity changes in the impact

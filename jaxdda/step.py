@@ -19,8 +19,8 @@ from jaxdda.contact.detect import contact_materials, detect, world_vertices
 from jaxdda.contact.keys import lookup
 from jaxdda.contact.kinematics import (apply_jacobian, apply_jacobian_t, clockwise, discrete_gradient, gap_change,
                                        gap_change_at, gap_frame, gap_frame_at, jacobians, jacobians_at)
-from jaxdda.integrate import (common_impact_time, exact_impact_time, free_displacement,
-                              impact_clock, matvec, mesh_clock, newmark_velocity)
+from jaxdda.integrate import (common_impact_time, exact_impact_time, free_displacement, impact_clock, matvec,
+                              mesh_clock, newmark_velocity, strike_time)
 from jaxdda.groups import Flexibility
 from jaxdda.solver import pc
 from jaxdda.solver.sets import ContactSets, sticking
@@ -182,8 +182,14 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     # The acceleration towards an impact includes last step's contact forces: a disk
     # falling onto a resting column meets a column held up by the floor, not one that
     # falls with it (the relative acceleration, and so t* and v(t*), would be wrong).
-    push0 = groups.apply(k_inv, apply_jacobian_t(jac, c, p0, n))  # displacement by last step's forces
-    accel = 2.0 * (free_displacement(k_inv, mass, load, vel, dt) + push0 - vel * dt) / dt ** 2
+    # Not those of contacts that open even without their own force (the end gap under the
+    # free motion and the other forces): a body leaving a wall is not pushed by it.
+    d_free = free_displacement(k_inv, mass, load, vel, dt)
+    own = _flexibility(jac, c, k_inv)[1][:, 0] * p0[:, 0]
+    alone = gap0 + apply_jacobian(jac, c, d_free + groups.apply(k_inv, apply_jacobian_t(jac, c, p0, n)))[:, 0] - own
+    p_prior = jnp.where(((alone > 0) & ~cemented)[:, None], 0.0, p0)  # last step's forces that still act
+    push0 = groups.apply(k_inv, apply_jacobian_t(jac, c, p_prior, n))  # displacement by last step's forces
+    accel = 2.0 * (d_free + push0 - vel * dt) / dt ** 2
     v_rel, a_rel = apply_jacobian(jac, c, vel), apply_jacobian(jac, c, accel)
     # A gap within round-off of the coordinates it comes from is a touch (64 ulp).
     reach = jnp.maximum(jnp.max(jnp.abs(state.origin[c.a]), -1), jnp.max(jnp.abs(state.origin[c.b]), -1))
@@ -201,8 +207,10 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
         return gap0 + gap_change_at(c, centroid, state.rotation, path(t, 0)[0], path(t, 1)[0])
 
     t_hit, hits = exact_impact_time(gap0, v_rel[:, 0], a_rel[:, 0], dt, touch, gap_on_path)
-    t_hit = jnp.where(hits & ~sustained, t_hit, 0.0)
-    t_hit = common_impact_time(t_hit, c.valid & hits & ~sustained, c.a, c.b, n, dt)
+    striking = c.valid & hits & ~sustained
+    t_hit = common_impact_time(jnp.where(striking, t_hit, 0.0), striking, c.a, c.b, n, dt)
+    t_hit = jnp.where(striking, t_hit, strike_time(t_hit, striking, c.a, c.b, model.fixed))
+    later = ~striking & (t_hit > 0)  # taken at a body's impact, later than the step's start
     (move_a, vel_a), (move_b, vel_b) = path(t_hit, 0), path(t_hit, 1)
     pose_a = (centroid[c.a] + move_a[0], state.rotation[c.a] + move_a[1])
     pose_b = (centroid[c.b] + move_b[0], state.rotation[c.b] + move_b[1])
@@ -212,10 +220,12 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     # A closed contact (gap within the margin d0) that does not approach takes part as a
     # plain constraint, v+_n >= 0: an impulse passes through a touching chain (B hits A
     # touching C: with e = 0 all three move on at one speed) instead of A being driven
-    # into C and pushed back out by the position-level solve.
-    approaching = hits & (v_hit[:, 0] < 0)
-    closed = gap0 <= params.margin
-    impacting = c.valid & (approaching | sustained | closed)
+    # into C and pushed back out by the position-level solve. One that strikes nothing
+    # itself is taken at its bodies' first impact: closed then, or still loaded.
+    closed = jnp.where(later, gap_hit, gap0) <= params.margin
+    approaching = hits & (v_hit[:, 0] < 0) & (closed | ~later)
+    loaded = (p_prior[:, 0] > 0) | cemented
+    impacting = c.valid & (approaching | loaded | closed)
     bounce = jnp.where(sustained | ~approaching, 0.0, restitution)
     op_m, diag_m = _flexibility(jac_hit, c, m_inv)
     zero = jnp.zeros_like(gap0)
@@ -242,7 +252,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
         gap_mid, normal_mid, point_mid = gap_frame(c, mid_centroid, mid_rotation)
         return jacobians(c, normal_mid, point_mid, gap_mid, mid_centroid), normal_mid, point_mid
 
-    d_pred = d_base + groups.apply(k_inv, apply_jacobian_t(mid_frame(d_base + push0)[0], c, p0, n))
+    d_pred = d_base + groups.apply(k_inv, apply_jacobian_t(mid_frame(d_base + push0)[0], c, p_prior, n))
     if pinned:
         # A pinned body turns about its pin with the lever of the mid-step configuration
         # (on the predictor's arc), as contact forces act in the mid-step frame: the torque
@@ -251,7 +261,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
         maps = pins.pin_maps(model, maps, pins.mid_centroid(model, centroid, d_pred))
         k_inv = groups.grouped(k_eff, proj, model, maps, coupling)
         d_base = free_displacement(k_inv, mass, load, v_star, dt) + shift
-        d_pred = d_base + groups.apply(k_inv, apply_jacobian_t(mid_frame(d_base + push0)[0], c, p0, n))
+        d_pred = d_base + groups.apply(k_inv, apply_jacobian_t(mid_frame(d_base + push0)[0], c, p_prior, n))
     change_pred = gap_change_by(d_pred)
     gap_pred = gap0 + change_pred
     jac_mid, normal_mid, point_mid = mid_frame(d_pred)

@@ -1,14 +1,15 @@
 """Non-convergence of the contact solve: reported per step, and by the user's choice the
 driver halves the time step for that step or stops with a clear error (issue 9, item 2).
 
-The scene is hard on purpose: a light block (density 3) thrown at 40 m/s onto a
-two-block stack, the upper block 0.05 m off the lower one's edge, all with friction 0.3
-and no restitution. At dt = 0.01 the contact solve of step 2 (the impact travelling
+The scene is hard on purpose: a block thrown at 80 m/s onto a two-block stack, the upper
+block 0.2 m off the lower one's edge, all with friction 0.8 and no restitution. At dt = 0.01 the contact solve of step 2 (the impact travelling
 through the stack) misses its tolerance within the default 5000 iterations; at dt / 2 it
 converges. Such a step is a matter of the whole contact set's geometry, not of one
 parameter, so the scene was chosen by a search over speeds, densities, offsets and
-frictions (its neighbours either converge at dt or fail at every halving); the cases
-here hold for it as for any such scene. All runs share one compiled chunk (the same
+frictions (its neighbours either converge at dt or fail at every halving), and chosen
+again when the engine changed (the earlier one, a block of density 3 at 40 m/s onto an
+offset of 0.05 m with friction 0.3, converges since the impact prediction leaves out the
+forces of contacts that open); the cases here hold for it as for any such scene. All runs share one compiled chunk (the same
 scene, capacities and chunk length; dt is a traced parameter).
 """
 import dataclasses
@@ -25,11 +26,11 @@ STEPS, CHUNK = 30, 30
 
 def thrown_block():
     sb = jaxdda.SceneBuilder(dt=0.01, gravity=(0.0, -10.0))
-    sb.add_material("rock", friction=0.3, restitution=0.0)
+    sb.add_material("rock", friction=0.8, restitution=0.0)
     sb.add_polygon(vertices=[(-3, -1), (3, -1), (3, 0), (-3, 0)], density=1.0, fixed=True, material="rock")
     sb.add_polygon(vertices=[(-1, 0), (1, 0), (1, 1), (-1, 1)], density=1.0, material="rock")
-    sb.add_polygon(vertices=[(-0.95, 1), (1.05, 1), (1.05, 2), (-0.95, 2)], density=1.0, material="rock")
-    sb.add_polygon(vertices=[(-0.5, 2.8), (0.5, 2.8), (0.5, 3.8), (-0.5, 3.8)], density=3.0, velocity=(0.0, -40.0),
+    sb.add_polygon(vertices=[(-0.8, 1), (1.2, 1), (1.2, 2), (-0.8, 2)], density=1.0, material="rock")
+    sb.add_polygon(vertices=[(-0.5, 2.8), (0.5, 2.8), (0.5, 3.8), (-0.5, 3.8)], density=1.0, velocity=(0.0, -80.0),
                    material="rock")
     return sb.build()
 
@@ -62,9 +63,10 @@ def test_raise_names_the_step(scene, reported):
     e = err.value
     assert (e.step, e.time, e.dt, e.iterations) == (2, 0.01, 0.01, int(reported.info.iterations[1]))
     assert e.residual == reported.info.residual[1] > 1e-12
-    # with 100 iterations a solve, one halving is not enough (the same compiled chunk)
+    # with 100 iterations a solve, one halving is not enough for the first step (the
+    # same compiled chunk)
     few = dataclasses.replace(scene.params, max_iter=jnp.asarray(100.0))
-    with pytest.raises(ConvergenceError, match=r"step 2 .* even at dt / 2 = 0\.005 s \(max_halvings = 1\)"):
+    with pytest.raises(ConvergenceError, match=r"step 1 \(from t = 0 s\) .* even at dt / 2 = 0\.005 s \(max_halvings = 1\)"):
         jaxdda.simulate(scene, STEPS, chunk=CHUNK, params=few, on_nonconvergence="halve", max_halvings=1)
 
 
@@ -85,9 +87,9 @@ def test_halve_converges_every_step_as_runs_at_dt_over_2(scene, reported, halved
     rest = jaxdda.simulate(scene, STEPS - 2, chunk=CHUNK, state=two.final_state, on_nonconvergence="halve")
     np.testing.assert_array_equal(rest.centroid[-1], halved.centroid[-1])
     np.testing.assert_array_equal(rest.velocity[-1], halved.velocity[-1])
-    # physically: the unconverged impact leaves an overlap (75 um measured) that the
-    # converged one, second order in the step's motion, stays far below (0.1 um measured)
-    assert halved.info.max_penetration.max() < 1e-2 * reported.info.max_penetration.max()
+    # physically: no restitution, friction: the energy never grows beyond round-off
+    total = jaxdda.energy(halved)["total"]
+    assert np.diff(total).max() <= 64 * np.finfo(float).eps * total[0]
 
 
 def test_bad_options_are_named(scene):

@@ -1,7 +1,9 @@
 """Closed-form and invariant checks beyond the paper's cases."""
+import dataclasses
 import math
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -69,6 +71,36 @@ def test_impact_inside_a_ring_at_the_exact_time_and_normal():
     np.testing.assert_allclose(run.centroid[k, 1], p + v * t_hit + v_out * (run.time[k] - t_hit), atol=1e-12, rtol=0)
     e = jaxdda.energy(run)["total"]
     assert np.max(np.abs(e - e[0])) < 1e-13 * e[0]
+
+
+def test_impact_on_a_body_leaving_a_wall_ignores_the_wall_force_it_left():
+    """B was pressed against a wall (gravity into it: last step's force m g is in the
+    contact memory). Gravity reverses, B leaves the wall at w and C, equal in mass,
+    strikes it at t* = d / (u + w) inside the step (e = 1, no friction). Both fall with
+    the same acceleration, so the exact answer is an exchange of velocities at t*. The
+    wall force is not what B will feel: taking it into B's motion towards the impact
+    (a phantom push away from the wall) gained energy (fuzz seed 567: a disk striking a
+    ring that had just left a wall)."""
+    dt, g, u, w = 0.01, 10.0, 0.5, 1.0
+    d = 0.5 * (u + w) * dt  # t* = dt / 2
+    sb = jaxdda.SceneBuilder(dt=dt, gravity=(g, 0.0))
+    sb.add_material("m", friction=0.0, restitution=1.0)
+    sb.add_polygon(vertices=[(0, 0), (1, 0), (1, 1), (0, 1)], density=1.0, fixed=True, material="m")  # the wall
+    sb.add_polygon(vertices=[(-1, 0), (0, 0), (0, 1), (-1, 1)], density=1.0, material="m")  # B, against it
+    sb.add_polygon(vertices=[(-4, 0), (-3, 0), (-3, 1), (-4, 1)], density=1.0, material="m")  # C, far off
+    scene = sb.build()
+    pressed = jaxdda.simulate(scene, 1).final_state
+    assert float(np.max(np.asarray(pressed.contact_force)[:, 0])) > 0.5 * g * dt  # the wall pushed B
+    start = dataclasses.replace(
+        pressed, displacement=jnp.array([[0.0, 0.0], [0.0, 0.0], [2.0 - d, 0.0]]),
+        velocity=jnp.zeros((3, 6)).at[1, 0].set(-w).at[2, 0].set(u))
+    run = jaxdda.simulate(scene, 1, state=start, params=dataclasses.replace(scene.params, gravity=jnp.array([-g, 0.0])))
+    t = 0.5 * dt
+    x_b = -0.5 - w * dt - 0.5 * g * dt ** 2 + (u + w) * (dt - t)
+    x_c = -1.5 - d + u * dt - 0.5 * g * dt ** 2 - (u + w) * (dt - t)
+    # exact up to the impulse solve's tolerance (1e-12 of the momentum scale, here 1 N s)
+    np.testing.assert_allclose(run.velocity[-1, 1:, 0], [u - g * dt, -w - g * dt], atol=1e-11, rtol=0)
+    np.testing.assert_allclose(run.centroid[-1, 1:, 0], [x_b, x_c], atol=1e-11 * dt, rtol=0)
 
 
 def test_head_on_collision_of_unequal_masses():
