@@ -33,6 +33,13 @@ def _warm_start(prev_key: jax.Array, prev_force: jax.Array, key: jax.Array) -> j
     return jnp.where(found[:, None], prev_force[idx], 0.0)
 
 
+def _at_partner(x: jax.Array, partner: jax.Array) -> jax.Array:
+    """Per contact: ``x`` of its partner (the other contact of an edge-to-edge interface),
+    its own where it has none."""
+    mine = jnp.arange(partner.shape[0])
+    return x[jnp.where(partner >= 0, partner, mine)]
+
+
 def _apply_w(operand, p: jax.Array) -> jax.Array:
     """W p = J inv J^T p for operand (jac, contacts, inv): the contact flexibility."""
     jac, c, inv = operand
@@ -281,7 +288,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     # gives v+ = -v). The sign of the two agrees whenever the motion does not reverse
     # inside the step, so sliding is unchanged.
     held = sticking(p0, sets) & ~((imp.force[:, 0] > 0) & ~sticking(imp.force, imp_sets))
-    held = held & jnp.where(sets.partner >= 0, held[jnp.maximum(sets.partner, 0)], True)  # an interface as one
+    held = held & _at_partner(held, sets.partner)  # an interface as one
     end_velocity = apply_jacobian(jac_mid, c, 0.5 * dt * v_star)
     # A velocity-level row's force does work p (G + J (dt / 2) v*). Where last step's force
     # already pushed along the slip (or roll) this step starts with, the row is taken at
@@ -290,7 +297,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     # it slipping back instead, by at most the drive over one step (docs/design.md, Energy).
     # Slips within round-off of the coordinates are none.
     along = p0[:, 1:] * end_velocity[:, 1:] > 0
-    along = along | jnp.where(sets.partner[:, None] >= 0, along[jnp.maximum(sets.partner, 0)], False)  # an interface as one
+    along = along | _at_partner(along, sets.partner)  # an interface as one
     positional = jnp.stack([held, jnp.zeros_like(held)], -1) | along
     end_velocity = end_velocity.at[:, 1:].set(jnp.where(positional, 0.0, end_velocity[:, 1:]))
     b_con = apply_jacobian(jac_mid, c, d_base - shift) - end_velocity

@@ -2,15 +2,16 @@
 driver halves the time step for that step or stops with a clear error (issue 9, item 2).
 
 The scene is hard on purpose: a block thrown at 80 m/s onto a two-block stack, the upper
-block 0.2 m off the lower one's edge, all with friction 0.8 and no restitution. At dt = 0.01 the contact solve of step 2 (the impact travelling
-through the stack) misses its tolerance within the default 5000 iterations; at dt / 2 it
-converges. Such a step is a matter of the whole contact set's geometry, not of one
-parameter, so the scene was chosen by a search over speeds, densities, offsets and
-frictions (its neighbours either converge at dt or fail at every halving), and chosen
-again when the engine changed (the earlier one, a block of density 3 at 40 m/s onto an
-offset of 0.05 m with friction 0.3, converges since the impact prediction leaves out the
-forces of contacts that open); the cases here hold for it as for any such scene. All runs share one compiled chunk (the same
-scene, capacities and chunk length; dt is a traced parameter).
+block 0.2 m off the lower one's edge, all with friction 0.8 and no restitution. At dt =
+0.01 the contact solve of step 2 (the impact travelling through the stack) misses its
+tolerance within the default 5000 iterations; at dt / 2 it converges. Such a step is a
+matter of the whole contact set's geometry, not of one parameter, so the scene was chosen
+by a search over speeds, densities, offsets and frictions (its neighbours either converge
+at dt or fail at every halving), and chosen again when the engine changed (the earlier
+one, a block of density 3 at 40 m/s onto an offset of 0.05 m with friction 0.3, converges
+since the impact prediction leaves out the forces of contacts that open); the cases here
+hold for it as for any such scene. All runs share one compiled chunk (the same scene,
+capacities and chunk length; dt is a traced parameter).
 """
 import dataclasses
 
@@ -66,7 +67,8 @@ def test_raise_names_the_step(scene, reported):
     # with 100 iterations a solve, one halving is not enough for the first step (the
     # same compiled chunk)
     few = dataclasses.replace(scene.params, max_iter=jnp.asarray(100.0))
-    with pytest.raises(ConvergenceError, match=r"step 1 \(from t = 0 s\) .* even at dt / 2 = 0\.005 s \(max_halvings = 1\)"):
+    with pytest.raises(ConvergenceError,
+                       match=r"step 1 \(from t = 0 s\) .* even at dt / 2 = 0\.005 s \(max_halvings = 1\)"):
         jaxdda.simulate(scene, STEPS, chunk=CHUNK, params=few, on_nonconvergence="halve", max_halvings=1)
 
 
