@@ -127,7 +127,7 @@ def run(args, record, ratios, out, ratio_file, failures_dir, command) -> int:
             record["failing"].append({"seed": seeds[i], "kind": "free" if specs[i]["free"] else "box",
                                       "broken": broken, "first_step": int(acc["first_bad"][i]),
                                       "nonconverged_steps": int(acc["nonconverged"][i]),
-                                      "reproducer": str(path.relative_to(ROOT))})
+                                      "reproducer": str(path.relative_to(ROOT) if path.is_relative_to(ROOT) else path)})
             for k in {kind_of(m) for m in broken}:
                 record["failures_by_invariant"][k] = record["failures_by_invariant"].get(k, 0) + 1
         record["failures"] += len(bad)

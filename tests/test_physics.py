@@ -103,6 +103,30 @@ def test_impact_on_a_body_leaving_a_wall_ignores_the_wall_force_it_left():
     np.testing.assert_allclose(run.centroid[-1, 1:, 0], [x_b, x_c], atol=1e-11 * dt, rtol=0)
 
 
+@pytest.mark.parametrize("frac", [0.1, 0.25, 0.5])
+def test_a_block_landing_inside_the_step_rests_at_once(frac):
+    """A block falls onto a floor (e = 0) and lands at t* = frac dt, in the first half of
+    the step. The floor's force acts from t* on only: the block ends the step at rest on the
+    floor, having lost exactly its kinetic energy at t*, and the floor's mean force over the
+    step is the momentum it took, m (g dt - v0) / dt. With the force over the whole step
+    the block kept v = -g t* (dt - t*) / dt into the floor."""
+    dt, g, v0 = 0.01, 10.0, -0.1
+    t = frac * dt
+    h = -(v0 * t - 0.5 * g * t * t)  # its height above the floor: it lands at t
+    sb = jaxdda.SceneBuilder(dt=dt, gravity=(0.0, -g))
+    sb.add_material("m", friction=0.3, restitution=0.0)
+    sb.add_polygon(vertices=[(-2, -1), (2, -1), (2, 0), (-2, 0)], density=1.0, fixed=True, material="m")
+    sb.add_polygon(vertices=[(-0.5, h), (0.5, h), (0.5, h + 1), (-0.5, h + 1)], density=1.0, material="m",
+                   velocity=(0.0, v0))
+    run = jaxdda.simulate(sb.build(), 1)
+    # the impulse solve's tolerance (1e-12 of the momentum scale, here 1 N s) over the step
+    np.testing.assert_allclose(run.velocity[-1, 1, :3], 0.0, atol=1e-11 / (dt - t))
+    np.testing.assert_allclose(run.centroid[-1, 1], [0.0, 0.5], atol=1e-11 * dt)
+    contacts = run.info.contacts
+    total = np.sum(np.where(contacts.valid[-1], contacts.normal_force[-1], 0.0))
+    np.testing.assert_allclose(total, (g * dt - v0) / dt, rtol=1e-10)
+
+
 def test_head_on_collision_of_unequal_masses():
     sb = jaxdda.SceneBuilder(dt=0.01, gravity=(0.0, 0.0))
     m1, m2, v1 = 1.0, 4.0, 3.0
