@@ -465,8 +465,10 @@ BATCH, STEPS, SAMPLE = 26, 50, 25  # SAMPLE: poses checked on the host every thi
 # a ring's hole timed on the linearised gap (191, 531, 2828) and an impact on a ring
 # predicted with the force of a wall it was leaving (567), and a disk caught by a ring's
 # inside while it slides along it, held by a force that acted before its impact too
-# (909, 1434, 1632, 2370, 2743, 3534).
-REGRESSION_SEEDS = (32, 58, 62, 82, 112, 194, 222, 191, 531, 2828, 567, 909, 1434, 1632, 2370, 2743, 3534)
+# (909, 1434, 1632, 2370, 2743, 3534), and bodies struck twice in a step or through a
+# contact that closed before their first impact (598, 2547, 3661, 3855).
+REGRESSION_SEEDS = (32, 58, 62, 82, 112, 194, 222, 191, 531, 2828, 567, 909, 1434, 1632, 2370, 2743, 3534,
+                    598, 2547, 3661, 3855)
 
 
 @settings(max_examples=1, derandomize=True, deadline=None, database=None, phases=[Phase.explicit, Phase.generate],
