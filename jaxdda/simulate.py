@@ -10,6 +10,8 @@ import numpy as np
 from jaxdda.errors import CapacityError, ConvergenceError
 from jaxdda.progress import Progress
 from jaxdda.scene.builder import Scene
+from jaxdda.scene.capacity import capacity_class
+from jaxdda.scene.padding import Shape, pad_scene, unpad_state
 from jaxdda.scene.validate import check_params
 from jaxdda.step import step
 from jaxdda.types import Capacities, ContactReport, Model, Params, State, StepInfo
@@ -219,6 +221,11 @@ def simulate(scene: Scene, steps: int, *, params: Params | None = None, chunk: i
     if state.contact_key.shape[-1] != model.capacity.contacts:
         model, state = with_capacity(model, state, dataclasses.replace(
             model.capacity, contacts=max(model.capacity.contacts, state.contact_key.shape[-1])))
+    # The run is of the scene padded to its size class: scenes of similar size share one
+    # compiled program (a notebook's edited scene, a test suite's small scenes).
+    own = dataclasses.replace(scene, model=model, state=state, params=params)
+    shape = Shape.covering([own]).bucket()
+    model, state, params = jax.tree.map(jnp.asarray, pad_scene(own, shape))
     start = state
     length = int(chunk)
     pieces, saved, converged, halvings, done = [], [np.zeros(1, np.int64)], [], [], 0
@@ -232,7 +239,7 @@ def simulate(scene: Scene, steps: int, *, params: Params | None = None, chunk: i
         n_ok = int(np.argmin(ok)) if failed else n_valid  # with stop: the steps before the first failure
         number = done + 1 + np.arange(n_ok)
         keep = np.flatnonzero((number % save_every == 0) | (number == steps))
-        pieces.append(jax.tree.map(lambda x: np.asarray(x)[keep], out))
+        pieces.append(_own_bodies(jax.tree.map(lambda x: np.asarray(x)[keep], out), own))
         saved.append(number[keep])
         converged.append(ok[:n_ok])
         halvings.append(np.zeros(n_ok, np.int64))
@@ -246,14 +253,15 @@ def simulate(scene: Scene, steps: int, *, params: Params | None = None, chunk: i
             model, state, row, depth = _subdivide(model, state, params, length, 1, max_halvings, done + 1)
             done += 1
             if done % save_every == 0 or done == steps:
-                pieces.append(jax.tree.map(lambda x: np.asarray(x)[None], row))
+                pieces.append(_own_bodies(jax.tree.map(lambda x: np.asarray(x)[None], row), own))
                 saved.append(np.array([done]))
             converged.append(np.ones(1, bool))
             halvings.append(np.array([depth]))
             bar.update(1, iterations=int(row[-1].iterations))
     bar.close()
-    return dataclasses.replace(_assemble(scene, pieces, state, start), saved_steps=np.concatenate(saved),
-                               step_converged=np.concatenate(converged), params=params, capacity=model.capacity,
+    final, first = (jax.tree.map(jnp.asarray, unpad_state(s, own, shape)) for s in (state, start))
+    return dataclasses.replace(_assemble(scene, pieces, final, first), saved_steps=np.concatenate(saved),
+                               step_converged=np.concatenate(converged), params=own.params, capacity=model.capacity,
                                halvings=np.concatenate(halvings))
 
 
@@ -273,7 +281,7 @@ def _run_grown(model, state, params, n_valid, length, stop):
         # run independent of where chunks begin: the steps before it are kept (run again
         # alone: the same program, the same bits), the rest run with the new capacities.
         first = int(np.argmax(overflow))
-        grown = model.capacity.grown(Capacities(*np.asarray(info.needed)[first].tolist()))
+        grown = capacity_class(model.capacity.grown(Capacities(*np.asarray(info.needed)[first].tolist())))
         if first > 0:
             n_valid = first
             continue
@@ -305,6 +313,17 @@ def _subdivide(model, state, params, length, depth, limit, number):
             rows.append(row)
             deepest, left = max(deepest, sub), left - 1
     return model, state, _merge(rows), deepest
+
+
+def _own_bodies(out, scene: Scene):
+    """A chunk's output (time, centroid, rotation, velocity, stress, stretch, info) of a
+    padded run, on the bodies, joints and connectors of ``scene`` only."""
+    n, joints, connectors = scene.model.n_bodies, scene.model.joint_key.shape[0], scene.model.connector_a.shape[0]
+    *cols, info = out
+    info = dataclasses.replace(info, joint_tension=info.joint_tension[:, :joints],
+                               joint_broken=info.joint_broken[:, :joints],
+                               connector_force=info.connector_force[:, :connectors])
+    return (cols[0], *(x[:, :n] for x in cols[1:]), info)
 
 
 def _merge(rows):

@@ -14,7 +14,8 @@ import jax.numpy as jnp
 from jaxdda._pytree import pytree_dataclass, static_field
 
 DISK, RING, POLYGON = 0, 1, 2
-KIND_NAMES = {DISK: "disk", RING: "ring", POLYGON: "polygon"}
+VOID = 3  # a padding body (scene.padding): never detected, never moved
+KIND_NAMES = {DISK: "disk", RING: "ring", POLYGON: "polygon", VOID: "padding"}
 NDOF = 6
 
 # Contact "b-side" feature types (the a-side is always a point with a radius).

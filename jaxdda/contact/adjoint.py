@@ -12,17 +12,12 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from jaxdda.contact.keys import lookup
+from jaxdda.contact.keys import lookup, slots_per_pair
 from jaxdda.types import B_LINE, POLYGON, Contacts, Model
 
 # Two vertex-edge contacts form one edge-edge interface when their edges are parallel
 # within this angle (rad).
 ADJOINT_ANGLE = 0.01
-
-
-def slots_per_pair(v_max: int) -> int:
-    """Key slots reserved per body pair (the most any narrow-phase kernel uses)."""
-    return 2 * v_max * v_max + 2 * v_max + 1
 
 
 def adjoint_partner(model: Model, c: Contacts, normal: jax.Array) -> jax.Array:

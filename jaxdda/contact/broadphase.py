@@ -6,6 +6,8 @@ each looks up the 3 x 3 cells around its own by binary search in the sorted cell
 Larger bodies (walls, bases) are paired with every body. The candidate count is thus
 about 9 x (bodies per cell) x N + (large bodies) x N: linear in N for a scene of fixed
 density. The buffer reports how many slots it needed; nothing is dropped silently.
+Void bodies (the padding of a scene brought to a larger shape, which come last) take no
+part: they are not binned, count in no median, and no large body is paired with them.
 """
 from __future__ import annotations
 
@@ -17,11 +19,11 @@ _OFFSET = 2 ** 30  # cell coordinates are shifted to be non-negative before pack
 _NEIGHBOURS = np.array([(dx, dy) for dx in (-1, 0, 1) for dy in (-1, 0, 1)])
 
 
-def _cells(lo, hi, xp):
+def _cells(lo, hi, void, xp):
     """Cell side h, cell coordinates (N, 2) and the 'large body' flag, for numpy or jax."""
     extent = xp.max(hi - lo, axis=1)
-    large = extent > 2.0 * xp.median(extent)
-    h = xp.max(xp.where(large, 0.0, extent))
+    large = ~void & (extent > 2.0 * xp.nanmedian(xp.where(void, xp.nan, extent)))
+    h = xp.max(xp.where(large | void, 0.0, extent))
     h = xp.where(h > 0, h, 1.0)
     centre = 0.5 * (lo + hi)
     return xp.floor(centre / h).astype(xp.int64), large
@@ -31,16 +33,19 @@ def _pack(ij, xp):
     return (ij[..., 0] + _OFFSET) * (2 * _OFFSET) + (ij[..., 1] + _OFFSET)
 
 
-def grid_pairs(lo: jax.Array, hi: jax.Array, capacity: int):
-    """All pairs i < j whose boxes [lo, hi] (N, 2) overlap.
+def grid_pairs(lo: jax.Array, hi: jax.Array, capacity: int, void: jax.Array | None = None):
+    """All pairs i < j whose boxes [lo, hi] (N, 2) overlap, of bodies not ``void`` (N,)
+    bool (the void ones must be the last).
 
     Returns ``(pairs (capacity, 2) int32, valid (capacity,) bool, needed () int32)``;
     ``needed`` counts the candidates examined, so ``needed > capacity`` means overflow.
     """
     n = lo.shape[0]
-    ij, large = _cells(lo, hi, jnp)
+    void = jnp.zeros(n, bool) if void is None else void
+    n_live = n - jnp.sum(void)
+    ij, large = _cells(lo, hi, void, jnp)
     sentinel = jnp.iinfo(jnp.int64).max
-    cell = jnp.where(large, sentinel, _pack(ij, jnp))
+    cell = jnp.where(large | void, sentinel, _pack(ij, jnp))
     order = jnp.argsort(cell)
     sorted_cell = cell[order]
 
@@ -48,9 +53,9 @@ def grid_pairs(lo: jax.Array, hi: jax.Array, capacity: int):
     target = _pack(ij[:, None, :] + _NEIGHBOURS[None], jnp)  # (N, 9)
     start = jnp.searchsorted(sorted_cell, target, side="left")
     stop = jnp.searchsorted(sorted_cell, target, side="right")
-    count_small = jnp.where(large[:, None], 0, stop - start).reshape(-1)
-    # Large bodies: every other body.
-    count_large = jnp.where(large, n, 0)
+    count_small = jnp.where((large | void)[:, None], 0, stop - start).reshape(-1)
+    # Large bodies: every other body (but the void ones, which come last).
+    count_large = jnp.where(large, n_live, 0)
     counts = jnp.concatenate([count_small, count_large])
     cum = jnp.cumsum(counts)
     needed = cum[-1].astype(jnp.int32)
@@ -79,7 +84,7 @@ def grid_pairs(lo: jax.Array, hi: jax.Array, capacity: int):
 def candidate_count(lo: np.ndarray, hi: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
     """Host (numpy) twin of ``grid_pairs``: the count it needs and the overlapping pairs."""
     n = len(lo)
-    ij, large = _cells(lo, hi, np)
+    ij, large = _cells(lo, hi, np.zeros(n, bool), np)
     cell = np.where(large, np.iinfo(np.int64).max, _pack(ij, np))
     order = np.argsort(cell, kind="stable")
     sorted_cell = cell[order]

@@ -7,11 +7,11 @@ import jax
 import jax.numpy as jnp
 
 from jaxdda.bodies.shape import to_world
-from jaxdda.contact.adjoint import slots_per_pair
 from jaxdda.contact.broadphase import compact, grid_pairs
+from jaxdda.contact.keys import slots_per_pair
 from jaxdda.contact.kinematics import gap_frame
 from jaxdda.contact.narrowphase import particle_particle, particle_polygon, polygon_polygon
-from jaxdda.types import POLYGON, Model
+from jaxdda.types import POLYGON, VOID, Model
 
 
 def world_vertices(model: Model, centroid: jax.Array, rotation: jax.Array) -> jax.Array:
@@ -47,7 +47,7 @@ def detect(model: Model, centroid: jax.Array, rotation: jax.Array, reach: jax.Ar
     n, v_max = model.n_bodies, model.max_vertices
     verts = world_vertices(model, centroid, rotation)
     lo, hi = bounding_boxes(model, centroid, verts, reach)
-    pairs, ok, need_candidates = grid_pairs(lo, hi, cap.candidates)
+    pairs, ok, need_candidates = grid_pairs(lo, hi, cap.candidates, model.kind == VOID)
     i, j = pairs[:, 0], pairs[:, 1]
     ok = ok & ~(model.fixed[i] & model.fixed[j]) & ~((model.mesh[i] >= 0) & (model.mesh[i] == model.mesh[j]))
     poly_i, poly_j = model.kind[i] == POLYGON, model.kind[j] == POLYGON

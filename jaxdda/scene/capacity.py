@@ -1,12 +1,29 @@
 """First guess of buffer capacities from the initial configuration (host side, numpy)."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from jaxdda.contact.broadphase import candidate_count
 from jaxdda.types import POLYGON, Capacities
 
 HEADROOM = 2  # room for the scene to rearrange before the driver has to regrow a buffer
+# The least first guesses: small scenes share their buffer sizes, and so their compiled program.
+LEAST = Capacities(candidates=32, pairs_pp=8, pairs_pb=8, pairs_bb=8, contacts=16)
+
+
+def size_class(x: int, least: int = 1) -> int:
+    """``x`` rounded up to ``least`` and to a number of 3 significant bits (at most 1/4 more)."""
+    x = max(int(x), least)
+    unit = 2 ** max(x.bit_length() - 3, 0)
+    return -(-x // unit) * unit
+
+
+def capacity_class(c: Capacities, least: Capacities | None = None) -> Capacities:
+    """Buffer capacities rounded up to their size classes (``size_class``)."""
+    floors = (1,) * 5 if least is None else dataclasses.astuple(least)
+    return Capacities(*(size_class(x, f) for x, f in zip(dataclasses.astuple(c), floors)))
 
 
 def initial_capacities(kind, fixed, centers, local, mask, bound, velocity, dt, gravity, margin) -> Capacities:
@@ -28,6 +45,5 @@ def initial_capacities(kind, fixed, centers, local, mask, bound, velocity, dt, g
     n_poly = poly[i].astype(int) + poly[j].astype(int)
     pp, pb, bb = (int(np.sum(ok & (n_poly == m))) for m in (0, 1, 2))
     contacts = pp + 2 * pb + 4 * bb
-    grow = lambda x, floor: HEADROOM * x + floor
-    return Capacities(candidates=grow(candidates, 16), pairs_pp=grow(pp, 4), pairs_pb=grow(pb, 4), pairs_bb=grow(bb, 4),
-                      contacts=grow(contacts, 8))
+    return capacity_class(Capacities(candidates=HEADROOM * candidates, pairs_pp=HEADROOM * pp, pairs_pb=HEADROOM * pb,
+                                     pairs_bb=HEADROOM * bb, contacts=HEADROOM * contacts), LEAST)

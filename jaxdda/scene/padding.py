@@ -1,8 +1,10 @@
 """Pad scenes of different sizes to one shape, so that ``vmap`` can batch them.
 
-A padding body is a fixed, weightless disk far outside the scene (fixed pairs are never
-tested, so it meets nothing); padding polygon vertices are masked out; padding
-materials, loads and joints are inert (zero tables, zero forces, no joint key).
+A padding body is void (``types.VOID``: the broad phase never pairs it), fixed and
+weightless; padding polygon vertices are masked out; padding materials, loads and joints
+are inert (zero tables, zero forces, no joint key). Contact keys, which encode the body
+count and the vertex slots, are renumbered (``keys.renumber``), so a state after some
+steps (its contact memory) pads as well as one as built.
 """
 from __future__ import annotations
 
@@ -13,10 +15,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxdda.errors import CapacityError
+from jaxdda.contact.keys import renumber
+from jaxdda.scene.capacity import capacity_class, size_class
 from jaxdda.scene.builder import Scene
-from jaxdda.scene.cement import initial_contacts
-from jaxdda.types import DISK, NO_JOINT, Capacities, Model, Params, State
+from jaxdda.types import NO_JOINT, VOID, Capacities, Model, Params, State
 
 
 @dataclasses.dataclass(frozen=True)
@@ -51,6 +53,18 @@ class Shape:
                      most(lambda s: s.model.pin_body.shape[0]),
                      Capacities(*np.max(caps, 0).tolist()))
 
+    def bucket(self) -> "Shape":
+        """The size class of this shape: each size rounded up to a number of 3 significant
+        bits (16, 20, 24, 28, 32, 40, ...: at most 1/4 more) and to a small least size, so
+        that scenes of similar size share one compiled program (``simulate``). Buffer
+        capacities have no least size (the builder's first guesses are classes already).
+        Connectors, pins and dof groups keep their sizes: their presence changes the step's
+        program, and a group's reduced system is solved densely."""
+        return dataclasses.replace(
+            self, bodies=size_class(self.bodies, 16), vertices=size_class(self.vertices, 4),
+            materials=size_class(self.materials, 4), loads=size_class(self.loads, 0), knots=size_class(self.knots, 2),
+            joints=size_class(self.joints, 4), capacity=capacity_class(self.capacity))
+
 
 def _pad(x, size: int, fill, axis: int = 0):
     x = np.asarray(x)
@@ -73,9 +87,7 @@ def pad_scene(scene: Scene, shape: Shape) -> tuple[Model, State, Params]:
     """(model, state, params) of ``scene`` padded to ``shape`` (numpy leaves)."""
     m, s, p = scene.model, scene.state, scene.params
     n, extra = m.n_bodies, shape.bodies - m.n_bodies
-    size = float(np.median(np.asarray(m.bound_radius)))  # keeps the broad phase's median cell size
-    far = np.asarray(s.centroid).max(0) + 10.0 * np.max(np.asarray(m.bound_radius)) + 10.0 * size
-    spots = far + np.stack([3.0 * size * np.arange(extra), np.zeros(extra)], -1)
+    size = float(np.median(np.asarray(m.bound_radius)))  # a padding body's (inert) size
 
     def bodies(x, fill):
         return _pad(x, shape.bodies, fill)
@@ -83,7 +95,7 @@ def pad_scene(scene: Scene, shape: Shape) -> tuple[Model, State, Params]:
     verts = _pad(np.asarray(m.local_vertices), shape.vertices, 0.0, axis=1)
     model = dataclasses.replace(
         m,
-        kind=bodies(m.kind, DISK), fixed=bodies(m.fixed, True), radius=bodies(m.radius, size),
+        kind=bodies(m.kind, VOID), fixed=bodies(m.fixed, True), radius=bodies(m.radius, size),
         inner_radius=bodies(m.inner_radius, 0.0), local_vertices=bodies(verts, 0.0),
         vertex_mask=bodies(_pad(np.asarray(m.vertex_mask), shape.vertices, False, axis=1), False),
         edge_mask=bodies(_pad(np.asarray(m.edge_mask), shape.vertices, False, axis=1), False),
@@ -96,13 +108,15 @@ def pad_scene(scene: Scene, shape: Shape) -> tuple[Model, State, Params]:
         dof_basis=bodies(m.dof_basis, 0.0), mesh=bodies(m.mesh, -1),
         load_body=_pad(m.load_body, shape.loads, 0), load_point=_pad(m.load_point, shape.loads, 0.0),
         load_times=_pad(_pad_knots(m.load_times, shape.knots), shape.loads, 0.0),
-        joint_key=_pad(m.joint_key, shape.joints, NO_JOINT), joint_a=_pad(m.joint_a, shape.joints, 0),
+        joint_a=_pad(m.joint_a, shape.joints, 0),
         joint_b=_pad(m.joint_b, shape.joints, 0), joint_point=_pad(m.joint_point, shape.joints, 0.0),
         **{f: _pad(getattr(m, f), shape.connectors, fill)  # inert padding connectors: zero stiffness
            for f, fill in (("connector_kind", 0), ("connector_a", 0), ("connector_b", 1), ("connector_pa", 0.0),
                            ("connector_pb", 0.0), ("connector_length", 1.0), ("connector_chord0", 1.0))},
         pin_body=_pad(m.pin_body, shape.pins, 0), pin_point=_pad(m.pin_point, shape.pins, 0.0),
         pin_role=_pad(m.pin_role, shape.pins, -1),  # inert padding pins
+        joint_key=renumber(_pad(m.joint_key, shape.joints, NO_JOINT), m.kind, n, m.max_vertices, shape.bodies,
+                           shape.vertices),
         group_members=_pad(_pad(np.asarray(m.group_members), shape.group_size, -1, axis=1), shape.groups, -1),
         group_dofs=_pad(_pad(np.asarray(m.group_dofs), shape.group_size, -1, axis=1), shape.groups, -1),
         group_free=_pad(_pad(np.asarray(m.group_free), shape.group_dofs, False, axis=1), shape.groups, False),
@@ -122,40 +136,28 @@ def pad_scene(scene: Scene, shape: Shape) -> tuple[Model, State, Params]:
            for f in ("connector_axial", "connector_bending", "connector_shear", "connector_pretension")})
     c = shape.capacity.contacts
     state = dataclasses.replace(
-        s, origin=np.concatenate([np.asarray(s.origin), spots]), displacement=bodies(s.displacement, 0.0),
+        s, origin=bodies(s.origin, 0.0), displacement=bodies(s.displacement, 0.0),
         rotation=bodies(s.rotation, 0.0), velocity=bodies(s.velocity, 0.0),
         stretch=bodies(s.stretch, 0.0) + np.concatenate([np.zeros((n, 2, 2)), np.tile(np.eye(2), (extra, 1, 1))]),
-        stress=bodies(s.stress, 0.0), contact_key=_pad(s.contact_key, c, -1), contact_force=_pad(s.contact_force, c, 0.0),
+        stress=bodies(s.stress, 0.0), contact_force=_pad(s.contact_force, c, 0.0),
+        contact_key=_pad(renumber(s.contact_key, m.kind, n, m.max_vertices, shape.bodies, shape.vertices), c, -1),
         joint_integrity=_pad(s.joint_integrity, shape.joints, 0.0))
-    if (shape.bodies, shape.vertices) != (n, m.max_vertices):  # contact keys encode both
-        if np.any(np.asarray(s.contact_key) >= 0):
-            raise ValueError(f"scene {scene.name!r} carries contact memory (a state after some steps): only "
-                             f"scenes as built can be padded to {shape.bodies} bodies / {shape.vertices} vertices")
-        model = _rekey_joints(model, state, params)
     return model, state, params
 
 
-def _rekey_joints(model: Model, state: State, params: Params) -> Model:
-    """The joints' contact keys in the padded numbering: each joint is the contact of
-    the padded scene between the same two bodies at the same point."""
-    keys = np.asarray(model.joint_key)
-    real = keys != NO_JOINT
-    if not real.any():
-        return model
-    c, _, point, needed = initial_contacts(*jax.tree.map(jnp.asarray, (model, state, params)))
-    if np.any(np.asarray(needed) > np.asarray(dataclasses.astuple(model.capacity))):
-        raise CapacityError(f"re-detecting the cemented joints of a padded scene overflowed (needed "
-                            f"{np.asarray(needed).tolist()}, capacity {model.capacity})")
-    same = ((np.asarray(c.a)[None] == np.asarray(model.joint_a)[:, None])
-            & (np.asarray(c.b)[None] == np.asarray(model.joint_b)[:, None]) & np.asarray(c.valid)[None])
-    dist = np.linalg.norm(np.asarray(point)[None] - np.asarray(model.joint_point)[:, None], axis=-1)
-    dist = np.where(same, dist, np.inf)
-    best = np.argmin(dist, 1)
-    tol = 1e-9 * (1.0 + np.max(np.abs(np.asarray(state.origin))))
-    lost = real & ~(dist[np.arange(len(keys)), best] <= tol)
-    if lost.any():
-        raise ValueError(f"cemented joint {int(np.flatnonzero(lost)[0])} was not found again in the padded scene")
-    return dataclasses.replace(model, joint_key=np.where(real, np.asarray(c.key)[best], NO_JOINT))
+def unpad_state(state: State, scene: Scene, shape: Shape) -> State:
+    """A state of ``scene`` padded to ``shape`` (``pad_scene``) brought back to the scene's
+    own shape: its bodies and joints, and its contact memory renumbered (the contact
+    capacity is kept)."""
+    m, n = scene.model, scene.model.n_bodies
+    per_body = ("origin", "displacement", "rotation", "velocity", "stretch", "stress")
+    kind = np.asarray(m.kind)
+    key = np.asarray(state.contact_key)
+    return dataclasses.replace(
+        state, **{f: np.asarray(getattr(state, f))[:n] for f in per_body},
+        joint_integrity=np.asarray(state.joint_integrity)[: m.joint_key.shape[0]],
+        contact_key=renumber(key, np.concatenate([kind, np.full(shape.bodies - n, VOID)]), shape.bodies,
+                             shape.vertices, n, m.max_vertices))
 
 
 def stack_scenes(scenes: Sequence[Scene]) -> tuple[Model, State, Params]:
