@@ -10,7 +10,7 @@ from jaxdda.types import POLYGON, Capacities
 
 HEADROOM = 2  # room for the scene to rearrange before the driver has to regrow a buffer
 # The least first guesses: small scenes share their buffer sizes, and so their compiled program.
-LEAST = Capacities(candidates=32, pairs_pp=8, pairs_pb=8, pairs_bb=8, contacts=16)
+LEAST = Capacities(candidates=64, pairs_pp=16, pairs_pb=16, pairs_bb=16, contacts=32)
 
 
 def size_class(x: int, least: int = 1) -> int:
