@@ -22,3 +22,18 @@ def _fresh_compilations():
     the deformable block's gradient crashed inside XLA (jaxlib 0.10.2; alone it compiles)."""
     yield
     jax.clear_caches()
+
+
+@pytest.fixture(scope="module")
+def no_persistent_cache():
+    """The module's programs are compiled without the persistent cache: serializing one of
+    the gradient programs of test_gradients crashed the process (a segmentation fault in
+    jaxlib 0.10.2's ``executable.serialize()``, in CI and here), and no other module
+    shares them."""
+    from jax.experimental.compilation_cache import compilation_cache
+
+    jax.config.update("jax_enable_compilation_cache", False)
+    compilation_cache.reset_cache()
+    yield
+    jax.config.update("jax_enable_compilation_cache", True)
+    compilation_cache.reset_cache()

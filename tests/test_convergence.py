@@ -4,11 +4,12 @@ driver halves the time step for that step or stops with a clear error (issue 9, 
 The scene is hard on purpose: a block thrown at 80 m/s onto a two-block stack, the upper
 block 0.2 m off the lower one's edge, all with friction 0.8 and no restitution, solved
 with a budget of MAX_ITER iterations a solve. At dt = 0.01 the solve of an early step (the
-impact travelling through the stack) needs more; at dt / 2 it needs fewer. Which step
-that is depends on every detail of the impact stage, so the tests take it from the
-reported run (``first_failure``) and require only that there is one. All runs share one
-compiled chunk (the same scene, capacities and chunk length; dt and max_iter are traced
-parameters).
+impact travelling through the stack) needs more; halved (once or more) it needs fewer.
+Which step that is, and the budget that makes one fail, depend on every detail of the
+impact stage (since dee4abe every step converges within 250; 200 fails even at dt / 16),
+so the tests take the step from the reported run (``first_failure``) and require only
+that there is one. All runs share one compiled chunk (the same scene, capacities and
+chunk length; dt and max_iter are traced parameters).
 """
 import dataclasses
 
@@ -19,7 +20,7 @@ import pytest
 import jaxdda
 from jaxdda.errors import ConvergenceError
 
-STEPS, CHUNK, MAX_ITER = 30, 30, 250
+STEPS, CHUNK, MAX_ITER = 30, 30, 225
 
 
 def thrown_block():

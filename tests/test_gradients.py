@@ -7,6 +7,7 @@ import math
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 import jaxdda
 from jaxdda.examples import practical
@@ -14,6 +15,7 @@ from jaxdda.scene.builder import SceneBuilder
 
 G = 10.0
 FD_RTOL = 1e-5  # the bar for smooth regimes
+pytestmark = pytest.mark.usefixtures("no_persistent_cache")
 
 
 def _with(scene, tol=1e-14):
