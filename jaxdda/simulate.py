@@ -179,7 +179,9 @@ def simulate(scene: Scene, steps: int, *, params: Params | None = None, chunk: i
     a buffer overflows, its capacity is grown from the counts its first overflowing step
     reported and the run goes on from that step, so no contact is ever lost and the
     results do not depend on where chunks begin (restarts are bit-identical).
-    Raises CapacityError if that does not settle within a few regrowths.
+    Raises CapacityError if that does not settle within a few regrowths. The scene runs
+    padded to its size class (``Shape.bucket``), so that scenes of similar size share one
+    compilation; what is returned is the scene's own bodies, joints and connectors.
 
     ``state``: start from it instead of ``scene.state`` (a ``final_state``, or a
     checkpoint's: ``jaxdda.checkpoint``); time goes on from ``state.time``. Its contact
