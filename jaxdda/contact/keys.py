@@ -24,8 +24,8 @@ def renumber(key, kind, n_from: int, v_from: int, n_to: int, v_to: int) -> np.nd
     """Keys of a scene of ``n_from`` bodies and ``v_from`` vertices per polygon as the same
     contacts' keys with ``n_to`` bodies and ``v_to`` vertices (a scene padded with bodies
     after its own, or with vertex slots after each polygon's: ``scene.padding``). Host
-    side (numpy); ``kind`` (>= the bodies the keys name) tells each pair's kernel; keys
-    < 0 (none, or a padding joint's) are kept."""
+    side (numpy); ``kind`` (of the bodies the keys name: padding bodies are never in a
+    key) tells each pair's kernel; keys < 0 (none, or a padding joint's) are kept."""
     key = np.asarray(key, np.int64)
     kind = np.asarray(kind)
     k = np.maximum(key, 0)

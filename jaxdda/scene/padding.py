@@ -108,6 +108,8 @@ def pad_scene(scene: Scene, shape: Shape) -> tuple[Model, State, Params]:
         dof_basis=bodies(m.dof_basis, 0.0), mesh=bodies(m.mesh, -1),
         load_body=_pad(m.load_body, shape.loads, 0), load_point=_pad(m.load_point, shape.loads, 0.0),
         load_times=_pad(_pad_knots(m.load_times, shape.knots), shape.loads, 0.0),
+        joint_key=renumber(_pad(m.joint_key, shape.joints, NO_JOINT), m.kind, n, m.max_vertices, shape.bodies,
+                           shape.vertices),
         joint_a=_pad(m.joint_a, shape.joints, 0),
         joint_b=_pad(m.joint_b, shape.joints, 0), joint_point=_pad(m.joint_point, shape.joints, 0.0),
         **{f: _pad(getattr(m, f), shape.connectors, fill)  # inert padding connectors: zero stiffness
@@ -115,8 +117,6 @@ def pad_scene(scene: Scene, shape: Shape) -> tuple[Model, State, Params]:
                            ("connector_pb", 0.0), ("connector_length", 1.0), ("connector_chord0", 1.0))},
         pin_body=_pad(m.pin_body, shape.pins, 0), pin_point=_pad(m.pin_point, shape.pins, 0.0),
         pin_role=_pad(m.pin_role, shape.pins, -1),  # inert padding pins
-        joint_key=renumber(_pad(m.joint_key, shape.joints, NO_JOINT), m.kind, n, m.max_vertices, shape.bodies,
-                           shape.vertices),
         group_members=_pad(_pad(np.asarray(m.group_members), shape.group_size, -1, axis=1), shape.groups, -1),
         group_dofs=_pad(_pad(np.asarray(m.group_dofs), shape.group_size, -1, axis=1), shape.groups, -1),
         group_free=_pad(_pad(np.asarray(m.group_free), shape.group_dofs, False, axis=1), shape.groups, False),
@@ -151,13 +151,10 @@ def unpad_state(state: State, scene: Scene, shape: Shape) -> State:
     capacity is kept)."""
     m, n = scene.model, scene.model.n_bodies
     per_body = ("origin", "displacement", "rotation", "velocity", "stretch", "stress")
-    kind = np.asarray(m.kind)
-    key = np.asarray(state.contact_key)
     return dataclasses.replace(
         state, **{f: np.asarray(getattr(state, f))[:n] for f in per_body},
         joint_integrity=np.asarray(state.joint_integrity)[: m.joint_key.shape[0]],
-        contact_key=renumber(key, np.concatenate([kind, np.full(shape.bodies - n, VOID)]), shape.bodies,
-                             shape.vertices, n, m.max_vertices))
+        contact_key=renumber(state.contact_key, m.kind, shape.bodies, shape.vertices, n, m.max_vertices))
 
 
 def stack_scenes(scenes: Sequence[Scene]) -> tuple[Model, State, Params]:
