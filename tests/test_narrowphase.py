@@ -2,7 +2,9 @@
 never at its distance to the line of an edge it lies beside, nor to the line of a
 farther edge than the one it entered by (fuzz seed 82: such a gap of -0.14 m threw a
 light polygon out at 138 m/s); a corner entering a notch meets both its edges (seed 194:
-held on one, it went 12 mm into the other)."""
+held on one, it went 12 mm into the other); two faces overlapping edge to edge keep both
+their corners however far the detection distance reaches (seed 1643: one kept, the
+other went 15 mm in)."""
 import jax.numpy as jnp
 import numpy as np
 
@@ -21,16 +23,17 @@ def _wedge(tip, lo_deg, hi_deg, length=0.5):
     return [tuple(tip), tuple(tip + length * u(lo_deg)), tuple(tip + length * u(hi_deg))]
 
 
-def _gaps(triangle, reach=0.4, first=SQUARE):
-    """Sorted gaps of every contact detected between A (``first``) and the triangle B
-    where they are given (world coordinates; the pair's detection distance ``reach``)."""
+def _gaps(triangle, reach=0.4, first=SQUARE, turn=0.0):
+    """Sorted gaps of every contact detected between A (``first``) and the polygon B
+    where they are given (world coordinates; the pair's detection distance ``reach``
+    and the angle ``turn`` it may turn in the step)."""
     sb = jaxdda.SceneBuilder(dt=1e-3)
     sb.add_polygon(first, density=1.0)
     sb.add_polygon([(x + FAR, y) for x, y in triangle], density=1.0)
     scene = sb.build()
     centroid = scene.state.centroid - jnp.array([[0.0, 0.0], [FAR, 0.0]])
     rotation = scene.state.rotation
-    c, needed = detect(scene.model, centroid, rotation, jnp.full(2, 0.5 * reach), jnp.zeros(2),
+    c, needed = detect(scene.model, centroid, rotation, jnp.full(2, 0.5 * reach), jnp.full(2, 0.5 * turn),
                      scene.params.margin)
     cap = scene.model.capacity
     assert np.all(np.asarray(needed) <= [cap.candidates, cap.pairs_pp, cap.pairs_pb, cap.pairs_bb, cap.contacts])
@@ -68,3 +71,17 @@ def test_a_corner_entering_a_notch_meets_both_its_edges():
     clearance = 0.05 / np.sqrt(1.25)
     assert np.sum(np.isclose(gaps, clearance, rtol=0, atol=1e-12)) == 2, gaps
     assert np.all(gaps > clearance - 1e-12), gaps
+
+
+def test_faces_overlapping_edge_to_edge_keep_both_corners():
+    # B: a unit block above A's top face, tilted by -0.02 rad about its lower-left corner
+    # Q = (0.3, 0.51); A's top-right corner P = (0.5, 0.5) lies under B's bottom face. The
+    # faces overlap over 0.2 m, less than the detection distance (0.4 m, a fast spinning
+    # pair), so P and Q are also a vertex-vertex pair. Edge to edge, each corner is held
+    # by the other's face: P at its distance to B's bottom line, Q at 0.01 above A's top.
+    theta, q = -0.02, np.array([0.3, 0.51])
+    rot = np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]])
+    block = [tuple(q + rot @ np.array(v)) for v in [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]]
+    gaps = _gaps(block, reach=0.4, turn=0.05)
+    p_gap = (np.array([0.5, 0.5]) - q) @ np.array([np.sin(theta), -np.cos(theta)])
+    assert np.allclose(gaps, sorted([p_gap, 0.01]), rtol=0, atol=1e-12), gaps

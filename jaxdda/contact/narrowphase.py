@@ -223,9 +223,17 @@ def polygon_polygon(model: Model, verts: jax.Array, i: jax.Array, j: jax.Array, 
     wedge_tol = (jnp.sin(jnp.minimum(turn, 0.5 * jnp.pi)) + WEDGE_TOL)[:, None, None]
 
     def interior(s, t, clear, front, near_start, near_end, mask, edge_len):
+        # A vertex near an edge's end is left to the vertex-vertex rule unless it lies
+        # along the edge from that end (within 45 degrees of it, over the segment): then
+        # the two edges overlap, and it is one of an edge-to-edge contact's two vertices
+        # (fuzz seed 1643: two spinning blocks' faces met across a detection distance
+        # longer than their overlap, and the rule kept one corner; the other went 15 mm in).
+        along = t * edge_len[:, None, :]
+        off = jnp.abs(s)
+        from_start, from_end = (along > off) & (t <= 1), (edge_len[:, None, :] - along > off) & (t >= 0)
         slack = (near_dist[:, None] / edge_len)[:, None, :]
-        return (mask & ~near_start & ~near_end & (t >= -slack) & (t <= 1 + slack) & (s >= pen) & front
-                & (clear >= -wedge_tol))
+        return (mask & (~near_start | from_start) & (~near_end | from_end) & (t >= -slack) & (t <= 1 + slack)
+                & (s >= pen) & front & (clear >= -wedge_tol))
 
     # A's vertex a on B's edge e = (b_e -> b_{e+1}).
     near_end_ab = gather_e(near, nb)
