@@ -69,7 +69,8 @@ def test_observables_agree_with_the_kept_trajectory(sliding):
     np.testing.assert_array_equal(traj["centroid"][:, -1], sliding["final_centroid"])
     np.testing.assert_allclose(sliding["mean_x"][:, 0], traj["centroid"][:, 1:, 0, 0].mean(1), rtol=1e-14)
     speed = np.linalg.norm(traj["velocity"][..., :2], axis=-1).max(1)
-    np.testing.assert_array_equal(sliding["max_speed"], speed)
+    # the same norm of the same velocities: XLA's square root may round 1 ulp from numpy's
+    np.testing.assert_allclose(sliding["max_speed"], speed, rtol=2 * np.finfo(float).eps, atol=0)
 
 
 def test_a_scenario_matches_a_single_run(incline, sliding):
