@@ -384,9 +384,8 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
         # position level too (its work p G dissipates, and it can stick). Elsewhere the force may
         # not push along that start slip: one that stops inside the step and would reverse ends
         # it slipping back instead, by at most the drive over one step (docs/design.md, Energy).
-        # Slips within round-off of the coordinates are none. Both rules hold in the frame
-        # the rows are taken in (with the signs of the other frame, a force pushed along
-        # this one's start slip: fuzz seed 367 gained 1.7e6 times its energy allowance).
+        # Slips within round-off of the coordinates are none. Both rules are taken in the
+        # frame the rows are (the work p (dt / 2) J v* is that frame's J).
         along = p0[:, 1:] * end_velocity[:, 1:] > 0
         along = along | _at_partner(along, sets.partner)  # an interface as one
         positional = jnp.stack([held, jnp.zeros_like(held)], -1) | along
