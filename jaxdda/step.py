@@ -353,9 +353,9 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     held = sticking(p0, sets) & (p0[:, 1] != 0.0) & ~((imp.force[:, 0] > 0) & ~sticking(imp.force, imp_sets))
     held = held & _at_partner(held, sets.partner)  # an interface as one
 
-    def linearised(d_lin):
-        """The contact problem linearised at the displacement d_lin: its frame, b and sets."""
-        change_lin = gap_change_by(d_lin)
+    def linearised(d_lin, change_lin):
+        """The contact problem linearised at the displacement d_lin (its gaps' exact change
+        ``change_lin``): its frame, b and sets."""
         jac, nrm, pt = mid_frame(d_lin)
         # The normal row as the discrete gradient of the gap over the motion to d_lin: the
         # normal force then does no work on a closed contact (energy, see discrete_gradient).
@@ -398,7 +398,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
                                  cohesion=sets.cohesion * (rest / dt) ** 2)
         return jac, nrm, pt, b, con_sets
 
-    jac_mid, normal_mid, point_mid, b_con, con_sets = linearised(d_pred)
+    jac_mid, normal_mid, point_mid, b_con, con_sets = linearised(d_pred, change_pred)
     op_k, diag_k = _flexibility(jac_mid, c, k_inv)
     force_scale = momentum / dt
     con_first = pc.solve(_apply_w, op_k, diag_k, b_con, con_sets, p0, params.tol, params.max_iter, force_scale)
@@ -407,7 +407,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     # distance from the predictor to the solution (a block spun by its impacts into a
     # corner: 0.1 of its size inside it, fuzz seeds 656, 2519, 2686, 3901).
     d_first = d_base + groups.apply(k_inv, apply_jacobian_t(jac_mid, c, con_first.force, n))
-    jac_mid, normal_mid, point_mid, b_con, con_sets = linearised(d_first)
+    jac_mid, normal_mid, point_mid, b_con, con_sets = linearised(d_first, gap_change_by(d_first))
     op_k, diag_k = _flexibility(jac_mid, c, k_inv)
     con = pc.solve(_apply_w, op_k, diag_k, b_con, con_sets, con_first.force, params.tol, params.max_iter, force_scale)
 

@@ -23,13 +23,13 @@ def _wedge(tip, lo_deg, hi_deg, length=0.5):
     return [tuple(tip), tuple(tip + length * u(lo_deg)), tuple(tip + length * u(hi_deg))]
 
 
-def _gaps(triangle, reach=0.4, first=SQUARE, turn=0.0):
+def _gaps(polygon, reach=0.4, first=SQUARE, turn=0.0):
     """Sorted gaps of every contact detected between A (``first``) and the polygon B
     where they are given (world coordinates; the pair's detection distance ``reach``
     and the angle ``turn`` it may turn in the step)."""
     sb = jaxdda.SceneBuilder(dt=1e-3)
     sb.add_polygon(first, density=1.0)
-    sb.add_polygon([(x + FAR, y) for x, y in triangle], density=1.0)
+    sb.add_polygon([(x + FAR, y) for x, y in polygon], density=1.0)
     scene = sb.build()
     centroid = scene.state.centroid - jnp.array([[0.0, 0.0], [FAR, 0.0]])
     rotation = scene.state.rotation
