@@ -95,43 +95,25 @@ def common_impact_time(t_hit: jax.Array, struck: jax.Array, a: jax.Array, b: jax
     return jnp.where(struck & (t_hit - near <= SIMULTANEITY * dt), near, t_hit)
 
 
-def strike_time(t_hit: jax.Array, striking: jax.Array, a: jax.Array, b: jax.Array, fixed: jax.Array) -> jax.Array:
-    """Per contact (C,): the earliest impact time (``t_hit`` of ``striking`` contacts) of
-    either of its free bodies; 0 where neither is struck. A contact that strikes nothing
-    itself (a resting or touching one) takes part in the impacts at that instant."""
-    n = fixed.shape[0]
-    t = jnp.where(striking, t_hit, jnp.inf)
-    first = jnp.where(fixed, jnp.inf, jnp.minimum(jax.ops.segment_min(t, a, n), jax.ops.segment_min(t, b, n)))
-    at = jnp.minimum(first[a], first[b])
-    return jnp.where(jnp.isfinite(at), at, 0.0)
+def _impact_source(t_hit: jax.Array, struck: jax.Array, carrying: jax.Array, a: jax.Array, b: jax.Array,
+                   fixed: jax.Array) -> jax.Array:
+    """Per body (N,): the struck contact whose impact reaches it first (-1: none).
 
-
-def impact_clock(t_hit: jax.Array, struck: jax.Array, carrying: jax.Array, a: jax.Array, b: jax.Array,
-                 fixed: jax.Array) -> jax.Array:
-    """Per body (N,): the time in the step at which its velocity changes in the impact
-    stage, so that it moves with its old velocity until then and its new one after.
-
-    A body struck by an impact (``struck`` contacts, times ``t_hit``) changes at its first
-    impact. A body that is not struck itself but passes an impact's impulse on (through
-    ``carrying`` contacts: a resting stack under a falling body, a free chain pushed at
-    one end) changes when that impulse arrives: at the time of the impact it passes on,
-    found by spreading the struck bodies' clocks along carrying contacts between free
-    bodies (the earliest wins; fixed bodies pass nothing on). Others: 0.
-
-    Per body, not per contact: a stack under a falling disk takes the disk's impulse and
-    the floor's equal and opposite one at the same instant, so its net velocity change
-    (zero) is shifted by nothing. The spreading is discrete (which impact reaches which
-    body); the clock itself is the differentiable t_hit of that impact.
+    A body struck itself takes its first impact. One that is not struck takes the first
+    impact that reaches it through ``carrying`` contacts between free bodies (a resting
+    stack under a falling body, a free chain pushed at one end): the struck bodies' times
+    spread along them, the earliest winning; fixed bodies pass nothing on. Discrete (which
+    impact reaches which body): no derivative flows through it.
     """
     n = fixed.shape[0]
     idx = jnp.arange(t_hit.shape[0])
     t = jnp.where(struck, jax.lax.stop_gradient(t_hit), jnp.inf)
     first = jnp.minimum(jax.ops.segment_min(t, a, n), jax.ops.segment_min(t, b, n))
 
-    def source(clock, offer, body):  # per body: the contact whose clock it takes (-1: none)
-        return jax.ops.segment_max(jnp.where(offer & (t == clock[body]), idx, -1), body, n)
+    def source(offer, body):  # per body: the contact whose time it takes (-1: none)
+        return jax.ops.segment_max(jnp.where(offer & (t == first[body]), idx, -1), body, n)
 
-    src = jnp.maximum(source(first, struck, a), source(first, struck, b))
+    src = jnp.maximum(source(struck, a), source(struck, b))
     is_struck = src >= 0
     live = carrying & ~fixed[a] & ~fixed[b]
 
@@ -145,6 +127,36 @@ def impact_clock(t_hit: jax.Array, struck: jax.Array, carrying: jax.Array, a: ja
         return (jnp.where(take, best, clock), jnp.where(take, jnp.maximum(via_a, via_b), src), jnp.any(take))
 
     _, src, _ = jax.lax.while_loop(lambda c: c[2], spread, (jnp.where(is_struck, first, jnp.inf), src, True))
+    return src
+
+
+def strike_time(t_hit: jax.Array, striking: jax.Array, carrying: jax.Array, a: jax.Array, b: jax.Array,
+                fixed: jax.Array) -> jax.Array:
+    """Per contact (C,): the earliest impact time (``t_hit`` of ``striking`` contacts) that
+    reaches either of its free bodies, directly or through ``carrying`` contacts
+    (``_impact_source``); 0 where none does. A contact that strikes nothing itself (a
+    resting or touching one) takes part in the impacts at that instant, also where the
+    impact reaches it through other contacts (timed at the step's start, it gained energy
+    in fuzz seed 7168)."""
+    src = jnp.where(fixed, -1, _impact_source(t_hit, striking, carrying, a, b, fixed))
+    first = jnp.where(src >= 0, t_hit[jnp.maximum(src, 0)], jnp.inf)
+    at = jnp.minimum(first[a], first[b])
+    return jnp.where(jnp.isfinite(at), at, 0.0)
+
+
+def impact_clock(t_hit: jax.Array, struck: jax.Array, carrying: jax.Array, a: jax.Array, b: jax.Array,
+                 fixed: jax.Array) -> jax.Array:
+    """Per body (N,): the time in the step at which its velocity changes in the impact
+    stage, so that it moves with its old velocity until then and its new one after: the
+    time of the first impact that reaches it (``_impact_source``, through the ``carrying``
+    contacts), 0 for others.
+
+    Per body, not per contact: a stack under a falling disk takes the disk's impulse and
+    the floor's equal and opposite one at the same instant, so its net velocity change
+    (zero) is shifted by nothing. The spreading is discrete (which impact reaches which
+    body); the clock itself is the differentiable t_hit of that impact.
+    """
+    src = _impact_source(t_hit, struck, carrying, a, b, fixed)
     return jnp.where(src >= 0, t_hit[jnp.maximum(src, 0)], 0.0)
 
 

@@ -213,9 +213,12 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     def gap_on_path(t):
         return gap0 + gap_change_at(c, centroid, state.rotation, path(t, 0)[0], path(t, 1)[0])
 
-    def timing(striking, t_own):  # struck contacts at their impact, the others at their bodies' first
+    # Contacts that may carry an impact's impulse on: loaded, cemented or closed.
+    may_carry = c.valid & ((p_prior[:, 0] > 0) | cemented | (gap0 <= params.margin))
+
+    def timing(striking, t_own):  # struck contacts at their impact, the others at the first that reaches them
         t = common_impact_time(jnp.where(striking, t_own, 0.0), striking, c.a, c.b, n, dt)
-        return jnp.where(striking, t, strike_time(t, striking, c.a, c.b, model.fixed))
+        return jnp.where(striking, t, strike_time(t, striking, may_carry, c.a, c.b, model.fixed))
 
     t_own, hits = exact_impact_time(gap0, v_rel[:, 0], a_rel[:, 0], dt, touch, gap_on_path)
     striking = c.valid & hits & ~sustained
