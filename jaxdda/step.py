@@ -19,8 +19,8 @@ from jaxdda.contact.detect import contact_materials, detect, world_vertices
 from jaxdda.contact.keys import lookup
 from jaxdda.contact.kinematics import (apply_jacobian, apply_jacobian_t, clockwise, discrete_gradient, gap_change,
                                        gap_change_at, gap_frame, gap_frame_at, jacobians, jacobians_at)
-from jaxdda.integrate import (common_impact_time, exact_impact_time, free_displacement, impact_clock, impact_time,
-                              matvec, mesh_clock, newmark_velocity, strike_time)
+from jaxdda.integrate import (SIMULTANEITY, common_impact_time, exact_impact_time, free_displacement, impact_clock,
+                              impact_time, matvec, mesh_clock, newmark_velocity, strike_time)
 from jaxdda.groups import Flexibility
 from jaxdda.solver import pc
 from jaxdda.solver.sets import ContactSets, sticking
@@ -275,15 +275,16 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     op_m, diag_m = _flexibility(jac_hit, c, m_inv)
     zero = jnp.zeros_like(gap0)
     imp_sets = sets._replace(enabled=impacting, cohesion=zero, tension=zero)
-    imp = _poisson_impact(op_m, diag_m, v_hit, imp_sets, bounce, params, momentum)
+    imp = imp_first = _poisson_impact(op_m, diag_m, v_hit, imp_sets, bounce, params, momentum)
     v_star = vel + groups.apply(m_inv, apply_jacobian_t(jac_hit, c, imp.force, n))
     struck = c.valid & ((approaching & ~sustained) | rushing)
     clock = impact_clock(t_hit, struck, impacting & (imp.force[:, 0] > 0), c.a, c.b, model.fixed)
     clock = mesh_clock(model.mesh, clock)
     shift = -(v_star - vel) * clock[:, None]
     # A windowed contact: one closed by an impact at 0 < t* <= dt / 2 that is each of its
-    # free bodies' only impact in the step. Its force acts from t* on, over the rest
-    # h = dt - t*: the solve's q (a force over the whole step) stands for p = q (dt / h)^2
+    # free bodies' only impact in the step, or a sustained contact of a body so struck
+    # (its force before t* is solved for on its own, "forces before an impact" below).
+    # Its force acts from t* on, over the rest h = dt - t*: the solve's q (a force over the whole step) stands for p = q (dt / h)^2
     # over h, which moves the bodies as much. Its impulse p h = q dt (dt / h) is more than
     # the q dt of Newmark's velocity by q dt t* / h (``late``). Its rows are taken over the
     # bodies' motion after t* (the trapezoidal rule over h): the gap's discrete gradient
@@ -303,13 +304,19 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     loose = loose.at[model.pin_body].set(False, mode="drop") | model.fixed
     struck_at = jnp.maximum(jnp.where(struck, t_hit, -jnp.inf), t_second)
     last = jnp.maximum(jax.ops.segment_max(struck_at, c.a, n), jax.ops.segment_max(struck_at, c.b, n))
+    own_clock = jnp.where(model.fixed, 0.0, clock)
+    t_win = jnp.maximum(own_clock[c.a], own_clock[c.b])  # the impact the contact's window starts at
+    candidate = c.valid & (struck | (sustained & ~cemented)) & (t_win > 0) & (t_win <= 0.5 * dt)
+    win_hi = jnp.maximum(jax.ops.segment_max(jnp.where(candidate, t_win, -jnp.inf), c.a, n),
+                         jax.ops.segment_max(jnp.where(candidate, t_win, -jnp.inf), c.b, n))
+    win_lo = jnp.minimum(jax.ops.segment_min(jnp.where(candidate, t_win, jnp.inf), c.a, n),
+                         jax.ops.segment_min(jnp.where(candidate, t_win, jnp.inf), c.b, n))
 
-    def once(body):  # struck at t* only (a later impact, left to the contact solve, counts too)
-        return loose[body] & (model.fixed[body] | ((clock[body] == t_hit) & (last[body] == t_hit)))
+    def once(body):  # its only impact at t* (a later one, left to the contact solve, counts too), or none
+        first_only = ((clock[body] == t_win) | (clock[body] == 0.0)) & (last[body] <= t_win)
+        return loose[body] & (model.fixed[body] | (first_only & (win_hi[body] == win_lo[body])))
 
-    window = struck & (t_hit > 0) & (t_hit <= 0.5 * dt) & once(c.a) & once(c.b)
-    u_clock = vel * clock[:, None] + 0.5 * accel * (clock ** 2)[:, None]  # each body's motion until its clock
-    v_clock = v_star + accel * clock[:, None]
+    window = candidate & once(c.a) & once(c.b)
 
     # 2. Contact forces over the step (eq. 39); gap evaluated exactly at the predictor.
     # The force acts along the normal of the mid-step configuration: normal to the chord
@@ -347,14 +354,86 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     others = other.astype(jnp.int32)
     crowded = (jax.ops.segment_sum(others, c.a, n) + jax.ops.segment_sum(others, c.b, n) > 0) & ~model.fixed
     windowed = window & ~crowded[c.a] & ~crowded[c.b]
-    rest = jnp.where(windowed, dt - t_hit, dt)
-    late = jnp.where(windowed, t_hit * dt / rest, 0.0)
+    # Per body: the start of its window (its clock, or the impact on the other body of its
+    # windowed contacts), 0 for bodies without one.
+    t_body = jnp.maximum(jnp.maximum(jax.ops.segment_max(jnp.where(windowed, t_win, 0.0), c.a, n),
+                                     jax.ops.segment_max(jnp.where(windowed, t_win, 0.0), c.b, n)), 0.0)
+    t_body = jnp.where(model.fixed, 0.0, t_body)
+
     # Stuck last step: its shear force inside the cone, and not exactly 0, which is where a
     # force that may not push along its start slip stops when the contact slides on
     # (``opposes``): taken at position level, the block that stopped on a slope and slipped
     # back under it would flip its velocity every step (d = 0 gives v+ = -v).
-    held = sticking(p0, sets) & (p0[:, 1] != 0.0) & ~((imp.force[:, 0] > 0) & ~sticking(imp.force, imp_sets))
-    held = held & _at_partner(held, sets.partner)  # an interface as one
+    def held_by(impulse):
+        held = sticking(p0, sets) & (p0[:, 1] != 0.0) & ~((impulse[:, 0] > 0) & ~sticking(impulse, imp_sets))
+        return held & _at_partner(held, sets.partner)  # an interface as one
+
+    def kinds(end_velocity, held):
+        """The shear and rolling rows' kinds: velocity level (G = J v+ times half the time
+        span) or position level (G = the relative motion), and the signs their forces may
+        not push along. A velocity-level row's force does work p (G + J (dt / 2) v*). Where
+        last step's force already pushed along the slip (or roll) this step starts with, the
+        row is taken at position level too (its work p G dissipates, and it can stick).
+        Elsewhere the force may not push along that start slip: one that stops inside the
+        step and would reverse ends it slipping back instead, by at most the drive over one
+        step (docs/design.md, Energy). Slips within round-off of the coordinates are none.
+        Both rules are taken in the frame the rows are (the work p (dt / 2) J v* is that
+        frame's J). Returns the velocity part of the rows and ``opposes``."""
+        along = p0[:, 1:] * end_velocity[:, 1:] > 0
+        along = along | _at_partner(along, sets.partner)  # an interface as one
+        positional = jnp.stack([held, jnp.zeros_like(held)], -1) | along
+        end_velocity = end_velocity.at[:, 1:].set(jnp.where(positional, 0.0, end_velocity[:, 1:]))
+        start = end_velocity[:, 1:] * jnp.stack([jnp.ones_like(touch), model.bound_radius[c.a] + model.bound_radius[c.b]], -1)
+        return end_velocity, jnp.where(jnp.abs(start) > touch[:, None], jnp.sign(start), 0.0)
+
+    # 1b. Forces before an impact: a windowed sustained contact (a body resting on or
+    # pressed against another when a third strikes it at t*) carries a force p over
+    # [0, t*] that the impact does not see as an impulse, and that ends at t*, where the
+    # window's force takes over. It is solved on its own: the contact problem over [0, t*]
+    # (the gap at t* and the slip over [0, t*]; its unknown q = p (t* / dt)^2 moves the
+    # bodies by K_eff^-1 q = M^-1 p t*^2 / 2), linearised at the motion to t* under last
+    # step's forces. The impact is then solved again on the velocities at t* that p gives.
+    # With p over the whole step instead, a force that drops at the impact (a light disk
+    # squeezed by a heavy one, knocked off it by a third body) did work and made 10 J in a
+    # step (fuzz seed 367). Its gap row asks only for the overlap the step starts with,
+    # not more: pushing an overlap out is the window's work, bounded as any step's.
+    pre = windowed & sustained & (t_win > SIMULTANEITY * dt)
+    tau = t_body / dt
+    share = jnp.where(pre, (t_win / dt) ** 2, 1.0)  # q = p share
+    u_free = vel * t_body[:, None] + (d_free - vel * dt) * (tau ** 2)[:, None]  # to t*, no contact force
+    u_lin = vel * t_body[:, None] + 0.5 * accel * (t_body ** 2)[:, None]  # to t*, last step's forces
+    change_lin = gap_change_by(u_lin)
+    jac_pre, normal_pre, _ = mid_frame(u_lin)
+    jac_pre = discrete_gradient(jac_pre, c, u_lin, change_lin, model.bound_radius)
+    end_pre, opposes_pre = kinds(apply_jacobian(jac_pre, c, 0.5 * vel * t_body[:, None]), held_by(jnp.zeros_like(p0)))
+    b_pre = apply_jacobian(jac_pre, c, u_free) - end_pre
+    b_pre = b_pre.at[:, 0].set(gap0 + change_lin - apply_jacobian(jac_pre, c, u_lin - u_free)[:, 0] - jnp.minimum(gap0, 0.0))
+    pre_sets = sets._replace(enabled=pre, opposes=opposes_pre, cohesion=sets.cohesion * share, tension=zero)
+    op_pre, diag_pre = _flexibility(jac_pre, c, k_inv)
+    least = jnp.min(jnp.where(pre, share, 1.0), initial=1.0)
+    before = pc.solve(_apply_w, op_pre, diag_pre, b_pre, pre_sets, p_prior * share[:, None], params.tol,
+                      params.max_iter, least * momentum / dt)
+    p_pre = jnp.where(pre[:, None], before.force / share[:, None], 0.0)
+    # K_eff^-1 J^T p: the displacement p would give over the whole step (M^-1 p dt^2 / 2).
+    by_pre = groups.apply(k_inv, apply_jacobian_t(jac_pre, c, p_pre, n))
+    by_prior = groups.apply(k_inv, apply_jacobian_t(jac, c, jnp.where(pre[:, None], p_prior, 0.0), n))
+    accel = accel + 2.0 * (by_pre - by_prior) / dt ** 2
+    (_, vel_a), (_, vel_b) = path(t_hit, 0), path(t_hit, 1)
+    v_hit = jnp.einsum("cij,cj->ci", jac_hit[:, 0], vel_a) + jnp.einsum("cij,cj->ci", jac_hit[:, 1], vel_b)
+    imp = _poisson_impact(op_m, diag_m, v_hit, imp_sets, bounce, params, momentum)
+    v_star = vel + groups.apply(m_inv, apply_jacobian_t(jac_hit, c, imp.force, n))
+    # p acts until t*: the velocity changes by M^-1 p t* (= 2 by_pre tau / dt), the
+    # displacement by M^-1 p (t* dt - t*^2 / 2) (= by_pre (2 tau - tau^2)).
+    shift = -(v_star - vel) * clock[:, None] + by_pre * (tau * (1.0 - tau))[:, None]
+    d_base = free_displacement(k_inv, mass, load, v_star, dt) + shift + by_pre * tau[:, None]
+    carried = jnp.where(windowed[:, None], 0.0, p_prior)  # a windowed contact's force acts from t* only
+    d_pred = d_base + groups.apply(k_inv, apply_jacobian_t(mid_frame(d_base + push0)[0], c, carried, n))
+    change_pred = gap_change_by(d_pred)
+    rest = jnp.where(windowed, dt - t_win, dt)
+    late = jnp.where(windowed, t_win * dt / rest, 0.0)
+    u_clock = vel * t_body[:, None] + 0.5 * accel * (t_body ** 2)[:, None]  # each body's motion until its window
+    v_clock = v_star + accel * t_body[:, None]
+    held = held_by(imp.force)
 
     def linearised(d_lin, change_lin):
         """The contact problem linearised at the displacement d_lin (its gaps' exact change
@@ -382,23 +461,11 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
         # inside the step, so sliding is unchanged. A windowed contact's rows run over h from t*.
         end_velocity = jnp.where(windowed[:, None], 0.5 * rest[:, None] * apply_jacobian(jac, c, v_clock),
                                  apply_jacobian(jac, c, 0.5 * dt * v_star))
-        # A velocity-level row's force does work p (G + J (dt / 2) v*). Where last step's force
-        # already pushed along the slip (or roll) this step starts with, the row is taken at
-        # position level too (its work p G dissipates, and it can stick). Elsewhere the force may
-        # not push along that start slip: one that stops inside the step and would reverse ends
-        # it slipping back instead, by at most the drive over one step (docs/design.md, Energy).
-        # Slips within round-off of the coordinates are none. Both rules are taken in the
-        # frame the rows are (the work p (dt / 2) J v* is that frame's J).
-        along = p0[:, 1:] * end_velocity[:, 1:] > 0
-        along = along | _at_partner(along, sets.partner)  # an interface as one
-        positional = jnp.stack([held, jnp.zeros_like(held)], -1) | along
-        end_velocity = end_velocity.at[:, 1:].set(jnp.where(positional, 0.0, end_velocity[:, 1:]))
+        end_velocity, opposes = kinds(end_velocity, held)
         since = jnp.where(windowed[:, None], apply_jacobian(jac, c, u_clock), apply_jacobian(jac, c, shift))
         b = apply_jacobian(jac, c, d_base) - since - end_velocity
         b = b.at[:, 0].set(gap0 + change_lin - apply_jacobian(jac, c, d_lin - d_base)[:, 0])
-        start = end_velocity[:, 1:] * jnp.stack([jnp.ones_like(touch), model.bound_radius[c.a] + model.bound_radius[c.b]], -1)
-        con_sets = sets._replace(opposes=jnp.where(jnp.abs(start) > touch[:, None], jnp.sign(start), 0.0),
-                                 cohesion=sets.cohesion * (rest / dt) ** 2)
+        con_sets = sets._replace(opposes=opposes, cohesion=sets.cohesion * (rest / dt) ** 2)
         return jac, nrm, pt, b, con_sets
 
     jac_mid, normal_mid, point_mid, b_con, con_sets = linearised(d_pred, change_pred)
@@ -460,17 +527,20 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
         return p[:, :1] * nrm + p[:, 1:2] * clockwise(nrm)
 
     mean = con.force * (dt / rest)[:, None]  # the mean force over the step (a windowed one acts over h)
-    force = jnp.where(c.valid[:, None], to_global(imp.force / dt, normal_hit) + to_global(mean, normal_mid), 0.0)
+    earlier = p_pre * (t_win / dt)[:, None]  # the force before an impact, over the step
+    force = jnp.where(c.valid[:, None], to_global(imp.force / dt, normal_hit) + to_global(mean, normal_mid)
+                      + to_global(earlier, normal_pre), 0.0)
     report = ContactReport(
         valid=c.valid, a=c.a, b=c.b, point=point_mid, normal=normal_mid,
         normal_force=jnp.sum(force * normal_mid, -1), shear_force=jnp.sum(force * clockwise(normal_mid), -1),
-        force=force, moment=jnp.where(c.valid, imp.force[:, 2] / dt + mean[:, 2], 0.0),
+        force=force, moment=jnp.where(c.valid, imp.force[:, 2] / dt + mean[:, 2] + earlier[:, 2], 0.0),
         cemented=cemented, gap=gap0)
     capacity = jnp.array(dataclasses.astuple(model.capacity), jnp.int32)
+    solves = (imp_first, before, imp, con_first, con)
     info = StepInfo(
-        iterations=imp.iterations + con_first.iterations + con.iterations,
-        residual=jnp.maximum(imp.residual, con.residual),
-        converged=imp.converged & con.converged,
+        iterations=sum(x.iterations for x in solves),
+        residual=jnp.max(jnp.stack([x.residual for x in solves])),
+        converged=jnp.all(jnp.stack([x.converged for x in solves])),
         needed=needed,
         overflow=jnp.any(needed > capacity),
         n_contacts=jnp.sum(c.valid).astype(jnp.int32),

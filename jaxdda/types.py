@@ -204,8 +204,8 @@ class ContactReport:
 class StepInfo:
     """Diagnostics of one step."""
 
-    iterations: jax.Array  # () int32 solver iterations, products with W (impact + contact)
-    residual: jax.Array  # () largest relative VI residual of the two solves
+    iterations: jax.Array  # () int32 solver iterations, products with W, of all the step's solves
+    residual: jax.Array  # () largest relative VI residual of the step's solves
     converged: jax.Array  # () bool
     needed: jax.Array  # (5,) int32 slots needed per buffer, in the order of Capacities
     overflow: jax.Array  # () bool: some buffer was too small (results incomplete)
