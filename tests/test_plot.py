@@ -77,7 +77,7 @@ def with_contacts(traj: Trajectory) -> Trajectory:
         valid=np.tile(valid, (s, 1)), a=np.tile(a, (s, 1)), b=np.tile(b, (s, 1)),
         point=np.tile(point, (s, 1, 1)), normal=normal, normal_force=scale * fn,
         shear_force=np.zeros((s, c)), force=scale[..., None] * fn[:, None] * normal, moment=np.zeros((s, c)),
-        cemented=np.zeros((s, c), bool), gap=np.zeros((s, c)))
+        cemented=np.zeros((s, c), bool), gap=np.zeros((s, c)), bearing=scale * fn)
     info = StepInfo(iterations=np.ones(s, np.int32), residual=np.zeros(s), converged=np.ones(s, bool),
                     needed=np.zeros((s, 5), np.int32), overflow=np.zeros(s, bool), n_contacts=np.full(s, c),
                     max_penetration=np.zeros(s), joint_tension=np.zeros((s, 0)), joint_broken=np.zeros((s, 0), bool),
