@@ -20,7 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec as P
 
-from jaxdda import observe as obs_mod
+from jaxdda import observe as obs_mod, programs
 from jaxdda.calibrate import _item
 from jaxdda.errors import CapacityError
 from jaxdda.progress import Progress
@@ -236,6 +236,7 @@ def _run_batch(model, state, params, observables, many, steps, length, mesh, tra
     model = put(model) if many else jax.device_put(model, NamedSharding(mesh, P()))
     state, params = put(state), put(params)
     start = state
+    programs.make_room()
     program = _program(tuple(observables.items()), many, length, mesh, trajectories)
     acc = _initial_acc(observables, start)
     saved, done = [], 0
@@ -276,6 +277,7 @@ def _initial_acc(observables, start):
             "penetration": jnp.zeros(b), "needed": jnp.zeros((b, 5), jnp.int32)}
 
 
+@programs.holds_programs
 @functools.lru_cache(maxsize=16)
 def _program(observables, many, length, mesh, trajectories):
     """The jit-compiled chunk: ``length`` steps of every scenario of a batch, sharded."""

@@ -7,6 +7,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxdda import programs
 from jaxdda.errors import CapacityError, ConvergenceError
 from jaxdda.progress import Progress
 from jaxdda.scene.builder import Scene
@@ -273,6 +274,7 @@ def _run_grown(model, state, params, n_valid, length, stop):
     Returns (model, state, end, out, steps run, capacities to grow to after them or None)."""
     grown = None
     for _ in range(MAX_REGROW):
+        programs.make_room()
         end, out = _run_chunk_jit(model, state, params, n_valid, length=length, stop=bool(stop))
         info = out[-1]
         overflow = np.asarray(info.overflow)[:n_valid]

@@ -1,9 +1,12 @@
 """Shared test setup."""
 import os
 import tempfile
+import warnings
 
 import jax
 import pytest
+
+from jaxdda import programs
 
 # Compiled programs are shared through JAX's persistent compilation cache by every process
 # of a test run: both xdist workers, the notebooks' kernels and the CLI's subprocesses
@@ -18,32 +21,20 @@ jax.config.update("jax_compilation_cache_dir", os.environ["JAX_COMPILATION_CACHE
 def _fresh_compilations():
     """Drop each module's compiled programs when it ends. A test module shares its compiled
     scenes among its own tests; nothing is shared across modules, and each program holds
-    thousands of the process's memory maps (see ``_map_headroom``)."""
+    thousands of the process's memory maps (``jaxdda.programs``)."""
     yield
     jax.clear_caches()
-
-
-def _memory_maps() -> tuple[int, int]:
-    """(memory maps this process holds, the kernel's limit vm.max_map_count); (0, 1) where
-    /proc does not tell."""
-    try:
-        with open("/proc/self/maps") as maps, open("/proc/sys/vm/max_map_count") as limit:
-            return sum(1 for _ in maps), int(limit.read())
-    except OSError:
-        return 0, 1
 
 
 @pytest.fixture(autouse=True)
 def _map_headroom():
     """Drop the compiled programs after a test that leaves the process over half its memory
-    maps. XLA on CPU (jaxlib 0.10.2) maps three regions per kernel, about 5 300 for one
-    step program and more for a gradient's; at vm.max_map_count (65 530 by default) the
-    next compilation dies with a segmentation fault. test_gradients' seven programs in one
-    process reached it (measured: 65 531 maps at the crash)."""
+    maps (``jaxdda.programs``): test_gradients' seven programs in one process reached
+    vm.max_map_count and the next compilation segfaulted."""
     yield
-    count, limit = _memory_maps()
-    if count > limit // 2:
-        jax.clear_caches()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        programs.make_room()
 
 
 @pytest.fixture(scope="module")
