@@ -284,8 +284,8 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     # A windowed contact: one closed by an impact at 0 < t* <= dt / 2 that is each of its
     # free bodies' only impact in the step, or a sustained contact of a body so struck
     # (its force before t* is solved for on its own, "forces before an impact" below).
-    # Its force acts from t* on, over the rest h = dt - t*: the solve's q (a force over the whole step) stands for p = q (dt / h)^2
-    # over h, which moves the bodies as much. Its impulse p h = q dt (dt / h) is more than
+    # Its force acts from t* on, over the rest h = dt - t*: the solve's q (a force over
+    # the whole step) stands for p = q (dt / h)^2 over h, which moves the bodies as much. Its impulse p h = q dt (dt / h) is more than
     # the q dt of Newmark's velocity by q dt t* / h (``late``). Its rows are taken over the
     # bodies' motion after t* (the trapezoidal rule over h): the gap's discrete gradient
     # from the pose at t*, the slip from the velocity v*(t*). A body landing inside the step
