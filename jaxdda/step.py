@@ -47,7 +47,8 @@ def _apply_w(operand, p: jax.Array) -> jax.Array:
 
 
 def _poisson_impact(op_m, diag_m, v_hit: jax.Array, imp_sets: ContactSets, bounce: jax.Array, params: Params,
-                    momentum: jax.Array) -> pc.Solution:
+                    momentum: jax.Array, warm: tuple[jax.Array, jax.Array] | None = None
+                    ) -> tuple[pc.Solution, tuple[jax.Array, jax.Array]]:
     """Impulses P (C, 3) of the impacts by Poisson's law with Coulomb friction, in two phases.
 
     Compression: the plastic impact, P1 solving the VI with G = W P1 + v(t*) (no contact
@@ -62,18 +63,23 @@ def _poisson_impact(op_m, diag_m, v_hit: jax.Array, imp_sets: ContactSets, bounc
     frictionless contact, for e = 0, and for impulses passed through touching chains (the
     touching pair struck with e = 1 still leaves them at (-1/3, 2/3, 2/3) v). In the
     restitution phase the rolling bound is delta x_n (the rebound part only).
-    """
-    def solve(b, sets):
-        return pc.solve(_apply_w, op_m, diag_m, b, sets, jnp.zeros_like(b), params.tol, params.max_iter, momentum)
 
-    comp = solve(v_hit, imp_sets)
+    Returns the impulses and the two phases' solutions, ``warm`` for a solve of the same
+    impacts again (each phase starts from them).
+    """
+    warm = warm or (jnp.zeros_like(v_hit), jnp.zeros_like(v_hit))
+
+    def solve(b, sets, p0):
+        return pc.solve(_apply_w, op_m, diag_m, b, sets, p0, params.tol, params.max_iter, momentum)
+
+    comp = solve(v_hit, imp_sets, warm[0])
     rebound = bounce * jnp.maximum(comp.force[:, 0], 0.0)
     kick = jnp.zeros_like(v_hit).at[:, 0].set(rebound)
     b_rest = _apply_w(op_m, comp.force + kick) + v_hit
     rest_sets = imp_sets._replace(cohesion=imp_sets.friction * rebound, partner=jnp.full_like(imp_sets.partner, -1))
-    rest = solve(b_rest, rest_sets)
+    rest = solve(b_rest, rest_sets, warm[1])
     return pc.Solution(comp.force + kick + rest.force, comp.iterations + rest.iterations,
-                       jnp.maximum(comp.residual, rest.residual), comp.converged & rest.converged)
+                       jnp.maximum(comp.residual, rest.residual), comp.converged & rest.converged), (comp.force, rest.force)
 
 
 def _flexibility(jac: jax.Array, c: Contacts, inv: Flexibility):
@@ -275,7 +281,8 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     op_m, diag_m = _flexibility(jac_hit, c, m_inv)
     zero = jnp.zeros_like(gap0)
     imp_sets = sets._replace(enabled=impacting, cohesion=zero, tension=zero)
-    imp = imp_first = _poisson_impact(op_m, diag_m, v_hit, imp_sets, bounce, params, momentum)
+    imp, phases = _poisson_impact(op_m, diag_m, v_hit, imp_sets, bounce, params, momentum)
+    imp_first = imp
     v_star = vel + groups.apply(m_inv, apply_jacobian_t(jac_hit, c, imp.force, n))
     struck = c.valid & ((approaching & ~sustained) | rushing)
     clock = impact_clock(t_hit, struck, impacting & (imp.force[:, 0] > 0), c.a, c.b, model.fixed)
@@ -420,7 +427,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     accel = accel + 2.0 * (by_pre - by_prior) / dt ** 2
     (_, vel_a), (_, vel_b) = path(t_hit, 0), path(t_hit, 1)
     v_hit = jnp.einsum("cij,cj->ci", jac_hit[:, 0], vel_a) + jnp.einsum("cij,cj->ci", jac_hit[:, 1], vel_b)
-    imp = _poisson_impact(op_m, diag_m, v_hit, imp_sets, bounce, params, momentum)
+    imp, _ = _poisson_impact(op_m, diag_m, v_hit, imp_sets, bounce, params, momentum, warm=phases)  # unchanged without p
     v_star = vel + groups.apply(m_inv, apply_jacobian_t(jac_hit, c, imp.force, n))
     # p acts until t*: the velocity changes by M^-1 p t* (= 2 by_pre tau / dt), the
     # displacement by M^-1 p (t* dt - t*^2 / 2) (= by_pre (2 tau - tau^2)).

@@ -86,13 +86,20 @@ def test_a_scenario_matches_a_single_run(incline, sliding):
 def test_undersized_buffers_are_regrown_to_the_same_result(incline, sliding):
     model, state = with_capacity(incline.model, incline.state, Capacities(1, 1, 1, 1, 1))
     small = _incline_run(dataclasses.replace(incline, model=model, state=state))
-    # bit for bit: every kept pose, observable and solver diagnostic
+    # The same run up to the contact solve's tolerance, as a batch matches a single run
+    # (above). Not bit for bit: XLA:CPU compiles an operation over the contact axis
+    # differently by its length (the incline's step at 4 and at 128 contact rows differs
+    # in the last bit of a centroid at its sixth step, on every engine since the first),
+    # so buffers of other sizes round differently, and the solve then stops at other
+    # iterates within its tolerance. A lost contact would move the block by its whole
+    # motion (metres), not by 1e-10 m.
     for name in ("centroid", "rotation", "velocity"):
-        np.testing.assert_array_equal(small.trajectory[name], sliding.trajectory[name], err_msg=name)
+        np.testing.assert_allclose(small.trajectory[name], sliding.trajectory[name], rtol=0, atol=1e-9, err_msg=name)
     for name in sliding.observables:
-        np.testing.assert_array_equal(small[name], sliding[name], err_msg=name)
-    for name in ("converged", "iterations", "residual", "max_penetration"):
-        np.testing.assert_array_equal(getattr(small, name), getattr(sliding, name), err_msg=name)
+        np.testing.assert_allclose(small[name], sliding[name], rtol=0, atol=1e-9, err_msg=name)
+    np.testing.assert_array_equal(small.converged, sliding.converged)
+    assert np.all(small.residual <= incline.params.tol) and np.all(sliding.residual <= incline.params.tol)
+    np.testing.assert_allclose(small.max_penetration, sliding.max_penetration, rtol=0, atol=1e-9)
 
 
 def test_batched_params_give_the_same_runs(incline, sliding):

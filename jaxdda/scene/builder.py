@@ -120,7 +120,7 @@ class SceneBuilder:
     """
 
     def __init__(self, dt: float, gravity: Sequence[float] = (0.0, -9.81), *, tol: float = 1e-12,
-                 max_iter: int = 5000, margin: float | None = None, dynamic: float = 1.0, name: str = "scene",
+                 max_iter: int = 20000, margin: float | None = None, dynamic: float = 1.0, name: str = "scene",
                  capacities: dict | None = None):
         self.dt, self.gravity, self.tol, self.max_iter, self.margin, self.name = dt, gravity, tol, max_iter, margin, name
         self.dynamic = dynamic
