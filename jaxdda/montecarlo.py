@@ -236,13 +236,13 @@ def _run_batch(model, state, params, observables, many, steps, length, mesh, tra
     model = put(model) if many else jax.device_put(model, NamedSharding(mesh, P()))
     state, params = put(state), put(params)
     start = state
-    programs.make_room()
     program = _program(tuple(observables.items()), many, length, mesh, trajectories)
     acc = _initial_acc(observables, start)
     saved, done = [], 0
     while done < steps:
         n_valid = min(length, steps - done)
         for _ in range(MAX_REGROW):
+            programs.make_room()  # a regrown buffer compiles the chunk again
             end, new_acc, out = program(model, state, params, start, acc, n_valid)
             if not bool(np.any(np.asarray(new_acc["overflow"]))):
                 break
