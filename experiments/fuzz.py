@@ -6,9 +6,9 @@
 Scene k is drawn from ``numpy.random.default_rng(start + k)`` by the generator of
 ``tests/test_fuzz.py`` (disks, rings holding bodies, convex and concave polygons; random
 velocities, spins, materials, densities over 1e0..1e6; gravity in a fixed box, or a free
-system without gravity) and runs ``--steps`` steps in vmapped batches of ``--batch``
-scenes, all through one compiled program. The invariants of every step are those of the
-test (finite state, penetration within the bound of the step's motion, energy never
+system without gravity) and runs ``--steps`` steps, scene by scene through one
+compiled program (``fz.run_batch``), in batches of ``--batch`` scenes between writes of
+the record. The invariants of every step are those of the test (finite state, penetration within the bound of the step's motion, energy never
 growing beyond round-off and the solve's tolerance, linear momentum of free scenes to
 round-off); each pose every 25 steps is also checked for overlaps on the host.
 
