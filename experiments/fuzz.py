@@ -8,9 +8,9 @@ Scene k is drawn from ``numpy.random.default_rng(start + k)`` by the generator o
 velocities, spins, materials, densities over 1e0..1e6; gravity in a fixed box, or a free
 system without gravity) and runs ``--steps`` steps, scene by scene through one
 compiled program (``fz.run_batch``), in batches of ``--batch`` scenes between writes of
-the record. The invariants of every step are those of the test (finite state, penetration within the bound of the step's motion, energy never
-growing beyond round-off and the solve's tolerance, linear momentum of free scenes to
-round-off); each pose every 25 steps is also checked for overlaps on the host.
+the record. The invariants of every step are those of the test (finite state,
+penetration within the bound of the step's motion, energy never growing beyond
+round-off and the solve's tolerance, linear momentum of free scenes to round-off); each pose every 25 steps is also checked for overlaps on the host.
 
 Writes ``--out`` after every batch: scenes, steps, scene-steps, failures (per invariant
 and in all), the seeds of the failing scenes with what they broke and the step it first
