@@ -80,10 +80,14 @@ SOLVER_SLACK = 10.0
 # at the predictor, plus its linear change, non-negative (to the solver tolerance). The
 # end configuration's gap differs from that by the second-order terms of the gap in the
 # step's motion: 1/2 (|dtheta_a| + |dtheta_b|)^2 (R_a + R_b) from the turns (lever arms at
-# most the bodies' bounding radii R) and |du_a - du_b|^2 / rho from the curvature of a
-# round surface: rho >= the smaller body's size for disks and corners outside each other,
-# and for a body held in a ring's hole the distance of its centre (or corner) from the
-# ring's at contact, the clearance r_hole - r (``curvature_radius``). A contact's overlap
+# most the bodies' bounding radii R) and s^2 / rho from the curvature of a round surface,
+# twice the s^2 / (2 rho) of a point sliding s along it: rho >= the smaller body's size for
+# disks and corners outside each other, and for a body held in a ring's hole the distance
+# of its centre (or corner) from the ring's at contact, the clearance r_hole - r
+# (``curvature_radius``). The slide s is the centroids' relative motion |du_a - du_b| plus
+# the turn of a polygon's corner on that surface, |dtheta| R (``slide``): a 0.35 m polygon
+# turning 0.045 rad against a ring slid its corner 0.016 m, more than the centroids' 0.011 m
+# (fuzz seed 690, an overlap of 1.28 times the bound without it). A contact's overlap
 # at a step's start may not exceed that bound of the motion of the step before, plus
 # PEN_FLOOR of the smaller body (the builder's own "touching" tolerance is 1e-9).
 PEN_FLOOR = 1e-9
@@ -293,6 +297,17 @@ def curvature_radius(model, centroid, rep) -> jax.Array:
     return rho
 
 
+def slide(rep, model, move, turn, lever) -> jax.Array:
+    """Per contact: a bound on the distance its contact point slides over a round surface in
+    a step: |du_a - du_b| from the centroids, plus |dtheta| R of each polygon whose corner
+    or edge it is (a disk's or ring's surface turns into itself), on a pair with a round
+    body; on two polygons the surfaces are flat and the centroids' motion stands for the
+    curvature of the turn alone (covered by the turns' own term)."""
+    round_pair = (model.kind[rep.a] != POLYGON) | (model.kind[rep.b] != POLYGON)
+    turned = turn[rep.a] * lever[rep.a] + turn[rep.b] * lever[rep.b]
+    return jnp.linalg.norm(move[rep.a] - move[rep.b], axis=-1) + jnp.where(round_pair, turned, 0.0)
+
+
 def overlap_work(rep) -> jax.Array:
     """The work the normal forces do in pushing out the overlap a step starts with:
     sum p_n max(-g0, 0), p_n the sum of a contact's rows (``bearing``). The contacts' total
@@ -328,14 +343,16 @@ def _scenario(model, state, params, steps: int, sample: int):
         rep = info.contacts
         small = jnp.minimum(size[rep.a], size[rep.b])
         arm = jnp.where(model.fixed, 0.0, model.bound_radius)
+        lever = jnp.where(model.kind == POLYGON, arm, 0.0)  # a round body's surface turns into itself
         bound = (PEN_FLOOR * small + 0.5 * (turn[rep.a] + turn[rep.b]) ** 2 * (arm[rep.a] + arm[rep.b])
-                 + jnp.sum((move[rep.a] - move[rep.b]) ** 2, -1) / curvature_radius(model, s.centroid, rep))
+                 + slide(rep, model, move, turn, lever) ** 2 / curvature_radius(model, s.centroid, rep))
         pen_ratio = jnp.max(jnp.where(rep.valid, -rep.gap / bound, 0.0), initial=0.0)
         turn2 = jnp.abs(s2.rotation - s.rotation)
         move2 = s2.displacement - s.displacement
         free_size = jnp.where(model.fixed, jnp.inf, model.bound_radius)
         scene_bound = (PEN_FLOOR * jnp.min(free_size) + 2.0 * jnp.max(turn2) ** 2 * 2.0 * jnp.max(arm)
-                       + 4.0 * jnp.max(jnp.sum(move2 ** 2, -1)) / jnp.min(free_size))
+                       + 4.0 * (jnp.max(jnp.linalg.norm(move2, axis=-1)) + jnp.max(turn2 * lever)) ** 2
+                       / jnp.min(free_size))
         # energy: step growth against round-off + solver allowance
         n_c = info.n_contacts.astype(float)
         tol_e = (ROUND * jnp.maximum(se, se_prev) + overlap_work(rep)
@@ -484,7 +501,7 @@ def reproducer(scene, steps: int, folder) -> Path:
 
 
 # ----------------------------------------------------------------------------- tests
-BATCH, STEPS, SAMPLE = 32, 50, 25  # SAMPLE: poses checked on the host every this many steps
+BATCH, STEPS, SAMPLE = 40, 50, 25  # SAMPLE: poses checked on the host every this many steps
 # Scenes experiments/fuzz.py once failed on: energy gained while bodies turn about
 # sustained contacts (32, 58, 112, 222), by Newton's impact law with a sticking
 # contact (62, Kane's paradox; docs/design.md, "Energy"), a corner held at its
@@ -499,9 +516,10 @@ BATCH, STEPS, SAMPLE = 32, 50, 25  # SAMPLE: poses checked on the host every thi
 # one corner only (1643), a contact timed at the step's start though an impact
 # reached its bodies through another contact (7168), and a light disk squeezed by a
 # heavy one when a third struck it, whose squeeze acted over the whole step (367), and a
-# heavy disk driven through the hole of a light ring it squeezed against a wall (7013).
+# heavy disk driven through the hole of a light ring it squeezed against a wall (7013), and
+# a polygon's corner turned along a light ring it squeezed (690: the bound's slide).
 REGRESSION_SEEDS = (32, 58, 62, 82, 112, 194, 222, 191, 531, 2828, 567, 909, 1434, 1632, 2370, 2743, 3534,
-                    598, 2547, 3661, 3855, 656, 2519, 2686, 3901, 1643, 7168, 367, 7013)
+                    598, 2547, 3661, 3855, 656, 2519, 2686, 3901, 1643, 7168, 367, 7013, 690)
 
 
 @settings(max_examples=1, derandomize=True, deadline=None, database=None, phases=[Phase.explicit, Phase.generate],
