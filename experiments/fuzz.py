@@ -1,16 +1,17 @@
 """Fuzzing random scenes for 1 000 000 scene-steps (issue 9).
 
     python experiments/fuzz.py [--scene-steps 1000000] [--batch 32] [--steps 50] [--start 0]
-                               [--out experiments/results/fuzz.json] [--hours H] [--resume]
+                               [--out experiments/results/fuzz.json] [--hours H] [--resume] [--workers N]
 
 Scene k is drawn from ``numpy.random.default_rng(start + k)`` by the generator of
 ``tests/test_fuzz.py`` (disks, rings holding bodies, convex and concave polygons; random
 velocities, spins, materials, densities over 1e0..1e6; gravity in a fixed box, or a free
 system without gravity) and runs ``--steps`` steps, scene by scene through one
 compiled program (``fz.run_batch``), in batches of ``--batch`` scenes between writes of
-the record. The invariants of every step are those of the test (finite state,
-penetration within the bound of the step's motion, energy never growing beyond
-round-off and the solve's tolerance, linear momentum of free scenes to round-off); each pose every 25 steps is also checked for overlaps on the host.
+the record, shared by ``--workers`` processes. The invariants of every step are those
+of the test (finite state, penetration within the bound of the step's motion, energy
+never growing beyond round-off and the solve's tolerance, linear momentum of free scenes
+to round-off); each pose every 25 steps is also checked for overlaps on the host.
 
 Writes ``--out`` after every batch: scenes, steps, scene-steps, failures (per invariant
 and in all), the seeds of the failing scenes with what they broke and the step it first
@@ -28,6 +29,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import multiprocessing
 import os
 import sys
 import time
@@ -68,6 +70,8 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=str(ROOT / "experiments" / "results" / "fuzz.json"))
     ap.add_argument("--hours", type=float, default=float("inf"), help="stop after the batch that passes this")
     ap.add_argument("--resume", action="store_true", help="continue the record in --out (same code only)")
+    ap.add_argument("--workers", type=int, default=1, help="processes sharing each batch, each scene run alone "
+                    "in one of them through its copy of the program")
     args = ap.parse_args(argv)
     out = Path(args.out).resolve()
     ratio_file = out.with_name(out.stem + "_energy_ratios.npy")
@@ -98,8 +102,34 @@ def main(argv=None) -> int:
     return run(args, record, [], out, ratio_file, failures_dir, command)
 
 
+def _check(seeds, steps: int, sample: int):
+    """Run and check the scenes of ``seeds``: their accumulators and (index, broken) failures."""
+    scenes = [fz.build(fz.draw_spec(fz.RngDraw(s))) for s in seeds]
+    acc, poses, _ = fz.run_batch(scenes, steps, sample=sample)
+    return acc, fz.check_batch(scenes, acc, poses, steps)
+
+
+def run_seeds(seeds, steps: int, sample: int, pool=None):
+    """``_check`` over a batch, split into contiguous shares over the pool's processes
+    (each compiles the program once) or in this process; results in seed order."""
+    if pool is None:
+        return _check(seeds, steps, sample)
+    n = pool._processes
+    shares = [seeds[len(seeds) * i // n: len(seeds) * (i + 1) // n] for i in range(n)]
+    parts = pool.starmap(_check, [(share, steps, sample) for share in shares if share])
+    acc = {k: np.concatenate([a[k] for a, _ in parts]) for k in parts[0][0]}
+    bad, offset = [], 0
+    for (a, b), share in zip(parts, [sh for sh in shares if sh]):
+        bad += [(offset + i, broken) for i, broken in b]
+        offset += len(share)
+    return acc, bad
+
+
 def run(args, record, ratios, out, ratio_file, failures_dir, command) -> int:
     """Batches from ``record['next_seed']`` until the target or ``--hours``; writes after each."""
+    pool = None
+    if args.workers > 1:  # JAX does not survive fork: spawned processes
+        pool = multiprocessing.get_context("spawn").Pool(args.workers)
     t0 = time.perf_counter()
     seed = record["next_seed"]
     sitting = {"command": command, "first_seed": seed, "scene_steps": 0, "seconds": 0.0,
@@ -112,8 +142,7 @@ def run(args, record, ratios, out, ratio_file, failures_dir, command) -> int:
         seeds = list(range(seed, seed + args.batch))
         specs = [fz.draw_spec(fz.RngDraw(s)) for s in seeds]
         scenes = [fz.build(s) for s in specs]
-        acc, poses, _ = fz.run_batch(scenes, args.steps, sample=args.sample)
-        bad = fz.check_batch(scenes, acc, poses, args.steps)
+        acc, bad = run_seeds(seeds, args.steps, args.sample, pool)
         seed += args.batch
         record["next_seed"] = seed
         sitting["scene_steps"] += len(scenes) * args.steps
@@ -157,6 +186,9 @@ def run(args, record, ratios, out, ratio_file, failures_dir, command) -> int:
         print(f"{record['scenes']} scenes, {record['scene_steps']} scene-steps, {record['failures']} failures "
               f"{record['failures_by_invariant']}, {record['nonconverged_steps']} non-converged steps; "
               f"{rate or 0:.0f} scene-steps/s, {left / 3600:.2f} h left", flush=True)
+    if pool is not None:
+        pool.close()
+        pool.join()
     record["done"] = record["scene_steps"] >= record["target_scene_steps"]
     out.write_text(json.dumps(record, indent=1) + "\n")
     print(json.dumps({k: record[k] for k in ("scenes", "steps", "scene_steps", "failures",
