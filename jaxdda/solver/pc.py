@@ -232,10 +232,22 @@ def _ratio(y, u, scale, sets):
     return jnp.where(jnp.isfinite(s), s, 0.0)
 
 
+# Arnoldi's breakdown: a new direction whose part outside the basis is below this share of
+# it is round-off, and the basis is complete.
+BREAKDOWN = 1e-10
+
+
 def _krylov(matvec, rhs, m):
     """One GMRES(m) cycle for matvec(x) = rhs: Arnoldi with twice-repeated classical
     Gram-Schmidt, then the least-squares problem of the Hessenberg matrix. Returns the
-    solution x (without its null modes) and what it leaves, rhs - matvec(x)."""
+    solution x (without its null modes) and what it leaves, rhs - matvec(x).
+
+    The Krylov space of a Newton system has the dimension of its few active rows, far
+    below m: once it is spanned (``BREAKDOWN``), the basis stops growing. Normalising the
+    round-off that orthogonalisation leaves instead filled the basis with vectors that were
+    not orthogonal to it, and the solution and its residual with their noise: on a light
+    ring pinched by a 22 t disk (fuzz seed 598) every Newton step "left" 0.8-1.4 of its
+    right side and the solve took 7 560 iterations; it now takes 2 Newton steps, 188."""
     shape, beta = rhs.shape, jnp.sqrt(jnp.sum(rhs * rhs))
     basis = jnp.zeros((m + 1, rhs.size), rhs.dtype).at[0].set(rhs.ravel() / jnp.where(beta > 0, beta, 1.0))
     rows = jnp.arange(m + 1)
@@ -243,12 +255,14 @@ def _krylov(matvec, rhs, m):
     def arnoldi(j, carry):
         basis, hess = carry
         w = matvec(basis[j].reshape(shape)).ravel()
+        size = jnp.sqrt(jnp.sum(w * w))
         h = jnp.where(rows <= j, basis @ w, 0.0)
         w = w - h @ basis
         h2 = jnp.where(rows <= j, basis @ w, 0.0)
         w, h = w - h2 @ basis, h + h2
         norm = jnp.sqrt(jnp.sum(w * w))
-        basis = basis.at[j + 1].set(w / jnp.where(norm > 0, norm, 1.0))
+        norm = jnp.where(norm > BREAKDOWN * size, norm, 0.0)  # the space is spanned: stop adding to it
+        basis = basis.at[j + 1].set(jnp.where(norm > 0, w / jnp.where(norm > 0, norm, 1.0), 0.0))
         return basis, hess.at[:, j].set(h.at[j + 1].set(norm))
 
     basis, hess = jax.lax.fori_loop(0, m, arnoldi, (basis, jnp.zeros((m + 1, m), rhs.dtype)))
