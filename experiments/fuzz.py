@@ -109,18 +109,18 @@ def _check(seeds, steps: int, sample: int):
     return acc, fz.check_batch(scenes, acc, poses, steps)
 
 
-def run_seeds(seeds, steps: int, sample: int, pool=None):
-    """``_check`` over a batch, split into contiguous shares over the pool's processes
-    (each compiles the program once) or in this process; results in seed order."""
+def run_seeds(seeds, steps: int, sample: int, pool=None, workers: int = 1):
+    """``_check`` over a batch, split into contiguous shares over the pool's ``workers``
+    processes (each compiles the program once) or in this process; results in seed order."""
     if pool is None:
         return _check(seeds, steps, sample)
-    n = pool._processes
-    shares = [seeds[len(seeds) * i // n: len(seeds) * (i + 1) // n] for i in range(n)]
-    parts = pool.starmap(_check, [(share, steps, sample) for share in shares if share])
-    acc = {k: np.concatenate([a[k] for a, _ in parts]) for k in parts[0][0]}
+    shares = [share for i in range(workers) if (share := seeds[len(seeds) * i // workers:
+                                                              len(seeds) * (i + 1) // workers])]
+    parts = pool.starmap(_check, [(share, steps, sample) for share in shares])
+    acc = {k: np.concatenate([part[k] for part, _ in parts]) for k in parts[0][0]}
     bad, offset = [], 0
-    for (a, b), share in zip(parts, [sh for sh in shares if sh]):
-        bad += [(offset + i, broken) for i, broken in b]
+    for (_, broken_of), share in zip(parts, shares):
+        bad += [(offset + i, broken) for i, broken in broken_of]
         offset += len(share)
     return acc, bad
 
@@ -141,18 +141,17 @@ def run(args, record, ratios, out, ratio_file, failures_dir, command) -> int:
         tb = time.perf_counter()
         seeds = list(range(seed, seed + args.batch))
         specs = [fz.draw_spec(fz.RngDraw(s)) for s in seeds]
-        scenes = [fz.build(s) for s in specs]
-        acc, bad = run_seeds(seeds, args.steps, args.sample, pool)
+        acc, bad = run_seeds(seeds, args.steps, args.sample, pool, args.workers)
         seed += args.batch
         record["next_seed"] = seed
-        sitting["scene_steps"] += len(scenes) * args.steps
-        record["scenes"] += len(scenes)
+        sitting["scene_steps"] += len(seeds) * args.steps
+        record["scenes"] += len(seeds)
         record["steps"] += args.steps
-        record["scene_steps"] += len(scenes) * args.steps
+        record["scene_steps"] += len(seeds) * args.steps
         for sp in specs:
             record["scenes_by_kind"]["free" if sp["free"] else "box"] += 1
         for i, broken in bad:
-            path = fz.jaxdda.scene.io.save_scene(scenes[i], failures_dir / f"seed_{seeds[i]}.toml", steps=args.steps)
+            path = fz.jaxdda.scene.io.save_scene(fz.build(specs[i]), failures_dir / f"seed_{seeds[i]}.toml", steps=args.steps)
             record["failing"].append({"seed": seeds[i], "kind": "free" if specs[i]["free"] else "box",
                                       "broken": broken, "first_step": int(acc["first_bad"][i]),
                                       "nonconverged_steps": int(acc["nonconverged"][i]),
