@@ -174,9 +174,18 @@ def discrete_gradient(jac: jax.Array, c: Contacts, d: jax.Array, change: jax.Arr
     -p_n g0: nothing on a closed contact, where the mid-step chord leaves O(dtheta^3 r)
     of work per step (energy drifts at second order, either way). The translational
     parts of the correction are equal and opposite: linear momentum is kept.
+
+    A side whose feature is its centroid (a disk's centre, a ring's hole) does not move
+    it by turning: its turn is not in D, so the normal force keeps no moment on a round
+    body. With it in D, a light ring pinched under 3e6 N between a heavy disk in its hole
+    and a wall was spun to 1 800 rad/s in one step (fuzz seed 598).
     """
     da, db = d[c.a], d[c.b]
     u = da[:, :2] - db[:, :2]
+    turns_a = jnp.any(c.pa != 0.0, -1)  # a polygon's vertex
+    turns_b = (c.btype == B_LINE) | jnp.any(c.qb != 0.0, -1)  # an edge, or a vertex
+    da = da.at[:, 2].multiply(turns_a)
+    db = db.at[:, 2].multiply(turns_b)
     wa, wb = reach[c.a][:, None] ** 2 * da[:, 2:], reach[c.b][:, None] ** 2 * db[:, 2:]
     size = jnp.sum(u * u, -1) + jnp.sum(wa * da[:, 2:], -1) + jnp.sum(wb * db[:, 2:], -1)
     # rho is the gap's curvature over the motion, at most ~|D|^2 / (the smaller reach): a
