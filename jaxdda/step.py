@@ -553,7 +553,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     (d_geo, *_), lins = jax.lax.scan(relinearise, start, jnp.array([False, True]))
     first, last = jax.tree.map(lambda x: x[0], lins), jax.tree.map(lambda x: x[1], lins)
     jac_two, normal_mid, point_mid, b_con, con_sets, both = last
-    normal_first, con_first = first[1], first[5]
+    _, normal_first, _, _, _, con_first = first
     op_k, diag_k = _flexibility(jac_two, rows, k_inv)
     con, p_cut = both._replace(force=both.force[:n_rows]), both.force[n_rows:]
 
