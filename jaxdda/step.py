@@ -572,8 +572,8 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     again = jnp.arange(LINEARISATIONS) > 0
     (d_geo, *_), lins = jax.lax.scan(relinearise, start, again)
     jac_two, normal_mid, point_mid, b_con, con_sets, both = jax.tree.map(lambda x: x[-1], lins)
-    normal_cut = lins[1][-2]  # the frame of the last solve's cut rows: the one before's
-    passes = lins[5]
+    _, normals, _, _, _, passes = lins
+    normal_cut = normals[-2]  # the frame of the last solve's cut rows: the one before's
     op_k, diag_k = _flexibility(jac_two, rows, k_inv)
     con, p_cut = both._replace(force=both.force[:n_rows]), both.force[n_rows:]
 
