@@ -76,13 +76,12 @@ def exact_impact_time(gap: jax.Array, vn: jax.Array, an: jax.Array, dt: jax.Arra
     from the end of the step where the linear model finds no root, so an impact it misses
     is found.
     """
-    t, hits = impact_time(gap, vn, an, dt, touch)
-    for _ in range(IMPACT_PASSES):
-        at = jnp.where(t > 1e-3 * dt, t, dt)  # a root near 0 takes the curvature of the whole step
+    def refit(_, t_hits):  # one pass (a loop, not unrolled: gap_at is a large part of the step's code)
+        at = jnp.where(t_hits[0] > 1e-3 * dt, t_hits[0], dt)  # a root near 0 takes the curvature of the whole step
         linear = gap + vn * at + 0.5 * an * at * at
-        a = an + 2.0 * (gap_at(at) - linear) / (at * at)
-        t, hits = impact_time(gap, vn, a, dt, touch)
-    return t, hits
+        return impact_time(gap, vn, an + 2.0 * (gap_at(at) - linear) / (at * at), dt, touch)
+
+    return jax.lax.fori_loop(0, IMPACT_PASSES, refit, impact_time(gap, vn, an, dt, touch))
 
 
 def common_impact_time(t_hit: jax.Array, struck: jax.Array, a: jax.Array, b: jax.Array, n_bodies: int,

@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 import dataclasses
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -161,6 +162,23 @@ CUT_SLACK = 1e-9
 LINEARISATIONS = 2
 
 
+class _Ahead(NamedTuple):
+    """What the first impact round decides for the rest of the step (``step``, 1 and 1b)."""
+
+    v_hit: jax.Array  # (C, 3) the velocities at t* the second round solves on
+    accel: jax.Array  # (N, dofs) the accelerations to t*, with the forces before the impacts
+    clock: jax.Array  # (N,) each body's impact time
+    windowed: jax.Array  # (C,) contacts whose force acts from t* on
+    t_win: jax.Array  # (C,) the impact a contact's window starts at
+    t_body: jax.Array  # (N,) the start of a body's window
+    tau: jax.Array  # (N,) t_body / dt
+    p_pre: jax.Array  # (C, 3) the forces before an impact
+    by_pre: jax.Array  # (N, dofs) K_eff^-1 J^T p_pre
+    normal_pre: jax.Array  # (C, 2) their frame
+    before: pc.Solution  # their solve
+    k_inv: Flexibility | None  # a pinned scene's flexibility on the mid-step levers
+
+
 def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     """Advance one step of length params.dt. Pure: jit, vmap and scan apply."""
     n, dt = model.n_bodies, params.dt
@@ -253,10 +271,10 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     # closes sooner, a convex one later than its linearisation says), and each contact's
     # frame and relative velocity at that instant: the impulse acts there, so Poisson's
     # law dissipates in the configuration it acts in.
-    def path(t, side):  # each contact's side's motion (shift, turn, strain) and velocity at time t
-        body = c.a if side == 0 else c.b
-        u = vel[body] * t[:, None] + 0.5 * accel[body] * (t ** 2)[:, None]
-        return (u[:, :2], u[:, 2], u[:, 3:]), vel[body] + accel[body] * t[:, None]
+    def path(t, side, acc=None):  # each contact's side's motion (shift, turn, strain) and velocity at time t
+        body, acc = (c.a if side == 0 else c.b), (accel if acc is None else acc)
+        u = vel[body] * t[:, None] + 0.5 * acc[body] * (t ** 2)[:, None]
+        return (u[:, :2], u[:, 2], u[:, 3:]), vel[body] + acc[body] * t[:, None]
 
     def gap_on_path(t):
         return gap0 + gap_change_at(c, centroid, state.rotation, path(t, 0)[0], path(t, 1)[0])
@@ -268,7 +286,15 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
         t = common_impact_time(jnp.where(striking, t_own, 0.0), striking, c.a, c.b, n, dt)
         return jnp.where(striking, t, strike_time(t, striking, may_carry, c.a, c.b, model.fixed))
 
-    t_own, hits = exact_impact_time(gap0, v_rel[:, 0], a_rel[:, 0], dt, touch, gap_on_path)
+    # Each contact's time to touch, and to close d0 past the overlap it starts with (for
+    # ``rushing`` below): one solve of the two (vmapped; gap_on_path is a large code).
+    floor = jnp.minimum(gap0, 0.0) - params.margin
+
+    def time_to(level):
+        return exact_impact_time(gap0 - level, v_rel[:, 0], a_rel[:, 0], dt, touch, lambda t: gap_on_path(t) - level)
+
+    times, reached = jax.vmap(time_to)(jnp.stack([jnp.zeros_like(floor), floor]))
+    t_own, hits = times[0], reached[0]
     striking = c.valid & hits & ~sustained
     t_hit = timing(striking, t_own)
     # A sustained contact that closes in by more than d0 on the way to its bodies' first
@@ -280,10 +306,8 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     # the heavy disk in its hole closes on it at the hole's curvature, which the start
     # frame misses; struck at the ring's later impact instead, deep inside the disk, the pair
     # was pushed apart with 3.7 kJ of work (fuzz seed 5061).
-    floor = jnp.minimum(gap0, 0.0) - params.margin
     rushing = c.valid & sustained & (t_hit > 0) & (gap_on_path(t_hit) < floor)
-    t_rush = jnp.minimum(exact_impact_time(gap0 - floor, v_rel[:, 0], a_rel[:, 0], dt, touch,
-                                           lambda t: gap_on_path(t) - floor)[0], t_hit)
+    t_rush = jnp.minimum(times[1], t_hit)
     striking, hits = striking | rushing, hits | rushing
     t_hit = timing(striking, jnp.where(rushing, t_rush, t_own))
     # One impact per pair of bodies and step: a later impact with another body is predicted
@@ -333,91 +357,11 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     op_m, diag_m = _flexibility(jac_hit, c, m_inv)
     zero = jnp.zeros_like(gap0)
     imp_sets = sets._replace(enabled=impacting, cohesion=zero, tension=zero)
-    imp, phases = _poisson_impact(op_m, diag_m, v_hit, imp_sets, bounce, params, momentum)
-    imp_first = imp
-    v_star = vel + groups.apply(m_inv, apply_jacobian_t(jac_hit, c, imp.force, n))
-    struck = c.valid & ((approaching & ~sustained) | rushing)
-    clock = impact_clock(t_hit, struck, impacting & (imp.force[:, 0] > 0), c.a, c.b, model.fixed)
-    clock = mesh_clock(model.mesh, clock)
-    shift = -(v_star - vel) * clock[:, None]
-    # A windowed contact: one closed by an impact at 0 < t* <= dt / 2 that is each of its
-    # free bodies' only impact in the step, or a sustained contact of a body so struck
-    # (its force before t* is solved for on its own, "forces before an impact" below).
-    # Its force acts from t* on, over the rest h = dt - t*: the solve's q (a force over
-    # the whole step) stands for p = q (dt / h)^2 over h, which moves the bodies as much. Its impulse p h = q dt (dt / h) is more than
-    # the q dt of Newmark's velocity by q dt t* / h (``late``). Its rows are taken over the
-    # bodies' motion after t* (the trapezoidal rule over h): the gap's discrete gradient
-    # from the pose at t*, the slip from the velocity v*(t*). A body landing inside the step
-    # then rests at once (with the force over the whole step it kept v = -g t* h / dt), and
-    # a disk caught by a ring's inside while it slides along it does no work on it (fuzz
-    # seeds 909, 1434, 1632, 2370, 2743, 3534). Cohesion, a force, scales as q does.
-    # Only for impacts in the first half of the step (the kick q dt t* / h is at most q dt):
-    # as h -> 0 it grows without bound, and a t* that the prediction misplaces (the first
-    # step of a stack does not know its support yet: a block thrown onto it seemed to strike
-    # at dt, h = 2e-18 s) turns a finite q into an unbounded kick. And only between loose
-    # rigid bodies, where Newmark's flexibility is the mass's: a body with stiffness, in a
-    # dof group (a mesh, connectors) or pinned keeps its forces over the whole step.
-    loose = jnp.all(stiff == 0.0, (-2, -1)) & ~model.fixed
-    members = model.group_members.reshape(-1)
-    loose = loose.at[jnp.where(members >= 0, members, n)].set(False, mode="drop")
-    loose = loose.at[model.pin_body].set(False, mode="drop") | model.fixed
-    struck_at = jnp.maximum(jnp.where(struck, t_hit, -jnp.inf), t_second)
-    last = jnp.maximum(jax.ops.segment_max(struck_at, c.a, n), jax.ops.segment_max(struck_at, c.b, n))
-    own_clock = jnp.where(model.fixed, 0.0, clock)
-    t_win = jnp.maximum(own_clock[c.a], own_clock[c.b])  # the impact the contact's window starts at
-    candidate = c.valid & (struck | (sustained & ~cemented)) & (t_win > 0) & (t_win <= 0.5 * dt)
-    win_hi = jnp.maximum(jax.ops.segment_max(jnp.where(candidate, t_win, -jnp.inf), c.a, n),
-                         jax.ops.segment_max(jnp.where(candidate, t_win, -jnp.inf), c.b, n))
-    win_lo = jnp.minimum(jax.ops.segment_min(jnp.where(candidate, t_win, jnp.inf), c.a, n),
-                         jax.ops.segment_min(jnp.where(candidate, t_win, jnp.inf), c.b, n))
-
-    def once(body):  # its only impact at t* (a later one, left to the contact solve, counts too), or none
-        first_only = ((clock[body] == t_win) | (clock[body] == 0.0)) & (last[body] <= t_win)
-        return loose[body] & (model.fixed[body] | (first_only & (win_hi[body] == win_lo[body])))
-
-    window = candidate & once(c.a) & once(c.b)
-
-    # 2. Contact forces over the step (eq. 39); gap evaluated exactly at the predictor.
-    # The force acts along the normal of the mid-step configuration: normal to the chord
-    # of the motion, so a frictionless sustained contact does no work (energy is kept on
-    # curved tracks; with the start normal it would do work p n.d every step).
-    # The predictor is the free motion plus last step's contact forces (applied in the
-    # mid-step frame of a first predictor): in a steady contact it is close to the
-    # solution, so the frame holds no motion that the contacts cancel (a tilt predicted
-    # from the free acceleration alone shifts every lever arm: 0.15 N in case 7.6).
-    d_base = free_displacement(k_inv, mass, load, v_star, dt) + shift
-
     def mid_frame(d, start=None):  # the frame half-way from ``start`` (default: the step's start) to d
         mid = 0.5 * d if start is None else 0.5 * (start + d)
         mid_centroid, mid_rotation = centroid + mid[:, :2], state.rotation + mid[:, 2]
         gap_mid, normal_mid, point_mid = gap_frame(c, mid_centroid, mid_rotation)
         return jacobians(c, normal_mid, point_mid, gap_mid, mid_centroid), normal_mid, point_mid
-
-    d_pred = d_base + groups.apply(k_inv, apply_jacobian_t(mid_frame(d_base + push0)[0], c, p_prior, n))
-    if pinned:
-        # A pinned body turns about its pin with the lever of the mid-step configuration
-        # (on the predictor's arc), as contact forces act in the mid-step frame: the torque
-        # of its weight is then the midpoint rule's and a pendulum keeps its energy (with
-        # the start lever it gains energy at first order, 1.5 % in 2 s at dt = 2 ms).
-        maps = pins.pin_maps(model, maps, pins.mid_centroid(model, centroid, d_pred))
-        k_inv = groups.grouped(k_eff, proj, model, maps, coupling)
-        d_base = free_displacement(k_inv, mass, load, v_star, dt) + shift
-        d_pred = d_base + groups.apply(k_inv, apply_jacobian_t(mid_frame(d_base + push0)[0], c, p_prior, n))
-    change_pred = gap_change_by(d_pred)
-    gap_pred = gap0 + change_pred
-    # ... and only where it is the only force on its free bodies: no other of their
-    # contacts is loaded or may close in the step (a light ring struck while heavy bodies
-    # squeeze it: the squeeze's forces act over the whole step, and the window's extra
-    # impulse q dt t* / h on the ring, unbalanced, threw it at 200 m/s).
-    other = c.valid & ~window & (sustained | cemented | (gap_pred <= params.margin))
-    others = other.astype(jnp.int32)
-    crowded = (jax.ops.segment_sum(others, c.a, n) + jax.ops.segment_sum(others, c.b, n) > 0) & ~model.fixed
-    windowed = window & ~crowded[c.a] & ~crowded[c.b]
-    # Per body: the start of its window (its clock, or the impact on the other body of its
-    # windowed contacts), 0 for bodies without one.
-    t_body = jnp.maximum(jnp.maximum(jax.ops.segment_max(jnp.where(windowed, t_win, 0.0), c.a, n),
-                                     jax.ops.segment_max(jnp.where(windowed, t_win, 0.0), c.b, n)), 0.0)
-    t_body = jnp.where(model.fixed, 0.0, t_body)
 
     # Stuck last step: its shear force inside the cone, and not exactly 0, which is where a
     # force that may not push along its start slip stops when the contact slides on
@@ -445,41 +389,155 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
         start = end_velocity[:, 1:] * jnp.stack([jnp.ones_like(touch), model.bound_radius[c.a] + model.bound_radius[c.b]], -1)
         return end_velocity, jnp.where(jnp.abs(start) > touch[:, None], jnp.sign(start), 0.0)
 
-    # 1b. Forces before an impact: a windowed sustained contact (a body resting on or
-    # pressed against another when a third strikes it at t*) carries a force p over
-    # [0, t*] that the impact does not see as an impulse, and that ends at t*, where the
-    # window's force takes over. It is solved on its own: the contact problem over [0, t*]
-    # (the gap at t* and the slip over [0, t*]; its unknown q = p (t* / dt)^2 moves the
-    # bodies by K_eff^-1 q = M^-1 p t*^2 / 2), linearised at the motion to t* under last
-    # step's forces. The impact is then solved again on the velocities at t* that p gives.
-    # With p over the whole step instead, a force that drops at the impact (a light disk
-    # squeezed by a heavy one, knocked off it by a third body) did work and made 10 J in a
-    # step (fuzz seed 367). Its gap row asks only for the overlap the step starts with,
-    # not more: pushing an overlap out is the window's work, bounded as any step's.
-    pre = windowed & sustained & (t_win > SIMULTANEITY * dt)
-    tau = t_body / dt
-    share = jnp.where(pre, (t_win / dt) ** 2, 1.0)  # q = p share
-    u_free = vel * t_body[:, None] + (d_free - vel * dt) * (tau ** 2)[:, None]  # to t*, no contact force
-    u_lin = vel * t_body[:, None] + 0.5 * accel * (t_body ** 2)[:, None]  # to t*, last step's forces
-    change_lin = gap_change_by(u_lin)
-    jac_pre, normal_pre, _ = mid_frame(u_lin)
-    jac_pre = discrete_gradient(jac_pre, c, u_lin, change_lin, model.bound_radius)
-    end_pre, opposes_pre = kinds(apply_jacobian(jac_pre, c, 0.5 * vel * t_body[:, None]), held_by(jnp.zeros_like(p0)))
-    b_pre = apply_jacobian(jac_pre, c, u_free) - end_pre
-    b_pre = b_pre.at[:, 0].set(gap0 + change_lin - apply_jacobian(jac_pre, c, u_lin - u_free)[:, 0] - jnp.minimum(gap0, 0.0))
-    pre_sets = sets._replace(enabled=pre, opposes=opposes_pre, cohesion=sets.cohesion * share, tension=zero)
-    op_pre, diag_pre = _flexibility(jac_pre, c, k_inv)
-    least = jnp.min(jnp.where(pre, share, 1.0), initial=1.0)
-    before = pc.solve(_apply_w, op_pre, diag_pre, b_pre, pre_sets, p_prior * share[:, None], params.tol,
-                      params.max_iter, least * momentum / dt)
-    p_pre = jnp.where(pre[:, None], before.force / share[:, None], 0.0)
-    # K_eff^-1 J^T p: the displacement p would give over the whole step (M^-1 p dt^2 / 2).
-    by_pre = groups.apply(k_inv, apply_jacobian_t(jac_pre, c, p_pre, n))
-    by_prior = groups.apply(k_inv, apply_jacobian_t(jac, c, jnp.where(pre[:, None], p_prior, 0.0), n))
-    accel = accel + 2.0 * (by_pre - by_prior) / dt ** 2
-    (_, vel_a), (_, vel_b) = path(t_hit, 0), path(t_hit, 1)
-    v_hit = jnp.einsum("cij,cj->ci", jac_hit[:, 0], vel_a) + jnp.einsum("cij,cj->ci", jac_hit[:, 1], vel_b)
-    imp, _ = _poisson_impact(op_m, diag_m, v_hit, imp_sets, bounce, params, momentum, warm=phases)  # unchanged without p
+    # The impacts are solved twice: on the velocities of the free motion under last step's
+    # forces, and again once the forces before them (1b below, which need the first
+    # solve's impulses) are known. One Poisson solve in a loop of the two rounds, with
+    # everything between them in the loop's first round (the solver is most of the step's
+    # compiled code).
+    def forces_before(imp):
+        """What the first round's impulses ``imp`` decide: the windows, and the forces
+        before an impact (1b), and the velocities at t* that the second round solves on."""
+        flex = k_inv
+        v_star = vel + groups.apply(m_inv, apply_jacobian_t(jac_hit, c, imp.force, n))
+        struck = c.valid & ((approaching & ~sustained) | rushing)
+        clock = impact_clock(t_hit, struck, impacting & (imp.force[:, 0] > 0), c.a, c.b, model.fixed)
+        clock = mesh_clock(model.mesh, clock)
+        shift = -(v_star - vel) * clock[:, None]
+        # A windowed contact: one closed by an impact at 0 < t* <= dt / 2 that is each of its
+        # free bodies' only impact in the step, or a sustained contact of a body so struck
+        # (its force before t* is solved for on its own, "forces before an impact" below).
+        # Its force acts from t* on, over the rest h = dt - t*: the solve's q (a force over
+        # the whole step) stands for p = q (dt / h)^2 over h, which moves the bodies as much. Its impulse p h = q dt (dt / h) is more than
+        # the q dt of Newmark's velocity by q dt t* / h (``late``). Its rows are taken over the
+        # bodies' motion after t* (the trapezoidal rule over h): the gap's discrete gradient
+        # from the pose at t*, the slip from the velocity v*(t*). A body landing inside the step
+        # then rests at once (with the force over the whole step it kept v = -g t* h / dt), and
+        # a disk caught by a ring's inside while it slides along it does no work on it (fuzz
+        # seeds 909, 1434, 1632, 2370, 2743, 3534). Cohesion, a force, scales as q does.
+        # Only for impacts in the first half of the step (the kick q dt t* / h is at most q dt):
+        # as h -> 0 it grows without bound, and a t* that the prediction misplaces (the first
+        # step of a stack does not know its support yet: a block thrown onto it seemed to strike
+        # at dt, h = 2e-18 s) turns a finite q into an unbounded kick. And only between loose
+        # rigid bodies, where Newmark's flexibility is the mass's: a body with stiffness, in a
+        # dof group (a mesh, connectors) or pinned keeps its forces over the whole step.
+        loose = jnp.all(stiff == 0.0, (-2, -1)) & ~model.fixed
+        members = model.group_members.reshape(-1)
+        loose = loose.at[jnp.where(members >= 0, members, n)].set(False, mode="drop")
+        loose = loose.at[model.pin_body].set(False, mode="drop") | model.fixed
+        struck_at = jnp.maximum(jnp.where(struck, t_hit, -jnp.inf), t_second)
+        last = jnp.maximum(jax.ops.segment_max(struck_at, c.a, n), jax.ops.segment_max(struck_at, c.b, n))
+        own_clock = jnp.where(model.fixed, 0.0, clock)
+        t_win = jnp.maximum(own_clock[c.a], own_clock[c.b])  # the impact the contact's window starts at
+        candidate = c.valid & (struck | (sustained & ~cemented)) & (t_win > 0) & (t_win <= 0.5 * dt)
+        win_hi = jnp.maximum(jax.ops.segment_max(jnp.where(candidate, t_win, -jnp.inf), c.a, n),
+                             jax.ops.segment_max(jnp.where(candidate, t_win, -jnp.inf), c.b, n))
+        win_lo = jnp.minimum(jax.ops.segment_min(jnp.where(candidate, t_win, jnp.inf), c.a, n),
+                             jax.ops.segment_min(jnp.where(candidate, t_win, jnp.inf), c.b, n))
+
+        def once(body):  # its only impact at t* (a later one, left to the contact solve, counts too), or none
+            first_only = ((clock[body] == t_win) | (clock[body] == 0.0)) & (last[body] <= t_win)
+            return loose[body] & (model.fixed[body] | (first_only & (win_hi[body] == win_lo[body])))
+
+        window = candidate & once(c.a) & once(c.b)
+
+        # 2. Contact forces over the step (eq. 39); gap evaluated exactly at the predictor.
+        # The force acts along the normal of the mid-step configuration: normal to the chord
+        # of the motion, so a frictionless sustained contact does no work (energy is kept on
+        # curved tracks; with the start normal it would do work p n.d every step).
+        # The predictor is the free motion plus last step's contact forces (applied in the
+        # mid-step frame of a first predictor): in a steady contact it is close to the
+        # solution, so the frame holds no motion that the contacts cancel (a tilt predicted
+        # from the free acceleration alone shifts every lever arm: 0.15 N in case 7.6).
+        d_base = free_displacement(flex, mass, load, v_star, dt) + shift
+
+
+        d_pred = d_base + groups.apply(flex, apply_jacobian_t(mid_frame(d_base + push0)[0], c, p_prior, n))
+        if pinned:
+            # A pinned body turns about its pin with the lever of the mid-step configuration
+            # (on the predictor's arc), as contact forces act in the mid-step frame: the torque
+            # of its weight is then the midpoint rule's and a pendulum keeps its energy (with
+            # the start lever it gains energy at first order, 1.5 % in 2 s at dt = 2 ms).
+            maps_mid = pins.pin_maps(model, maps, pins.mid_centroid(model, centroid, d_pred))
+            flex = groups.grouped(k_eff, proj, model, maps_mid, coupling)
+            d_base = free_displacement(flex, mass, load, v_star, dt) + shift
+            d_pred = d_base + groups.apply(flex, apply_jacobian_t(mid_frame(d_base + push0)[0], c, p_prior, n))
+        change_pred = gap_change_by(d_pred)
+        gap_pred = gap0 + change_pred
+        # ... and only where it is the only force on its free bodies: no other of their
+        # contacts is loaded or may close in the step (a light ring struck while heavy bodies
+        # squeeze it: the squeeze's forces act over the whole step, and the window's extra
+        # impulse q dt t* / h on the ring, unbalanced, threw it at 200 m/s).
+        other = c.valid & ~window & (sustained | cemented | (gap_pred <= params.margin))
+        others = other.astype(jnp.int32)
+        crowded = (jax.ops.segment_sum(others, c.a, n) + jax.ops.segment_sum(others, c.b, n) > 0) & ~model.fixed
+        windowed = window & ~crowded[c.a] & ~crowded[c.b]
+        # Per body: the start of its window (its clock, or the impact on the other body of its
+        # windowed contacts), 0 for bodies without one.
+        t_body = jnp.maximum(jnp.maximum(jax.ops.segment_max(jnp.where(windowed, t_win, 0.0), c.a, n),
+                                         jax.ops.segment_max(jnp.where(windowed, t_win, 0.0), c.b, n)), 0.0)
+        t_body = jnp.where(model.fixed, 0.0, t_body)
+
+
+        # 1b. Forces before an impact: a windowed sustained contact (a body resting on or
+        # pressed against another when a third strikes it at t*) carries a force p over
+        # [0, t*] that the impact does not see as an impulse, and that ends at t*, where the
+        # window's force takes over. It is solved on its own: the contact problem over [0, t*]
+        # (the gap at t* and the slip over [0, t*]; its unknown q = p (t* / dt)^2 moves the
+        # bodies by K_eff^-1 q = M^-1 p t*^2 / 2), linearised at the motion to t* under last
+        # step's forces. The impact is then solved again on the velocities at t* that p gives.
+        # With p over the whole step instead, a force that drops at the impact (a light disk
+        # squeezed by a heavy one, knocked off it by a third body) did work and made 10 J in a
+        # step (fuzz seed 367). Its gap row asks only for the overlap the step starts with,
+        # not more: pushing an overlap out is the window's work, bounded as any step's.
+        pre = windowed & sustained & (t_win > SIMULTANEITY * dt)
+        tau = t_body / dt
+        share = jnp.where(pre, (t_win / dt) ** 2, 1.0)  # q = p share
+        u_free = vel * t_body[:, None] + (d_free - vel * dt) * (tau ** 2)[:, None]  # to t*, no contact force
+        u_lin = vel * t_body[:, None] + 0.5 * accel * (t_body ** 2)[:, None]  # to t*, last step's forces
+        change_lin = gap_change_by(u_lin)
+        jac_pre, normal_pre, _ = mid_frame(u_lin)
+        jac_pre = discrete_gradient(jac_pre, c, u_lin, change_lin, model.bound_radius)
+        end_pre, opposes_pre = kinds(apply_jacobian(jac_pre, c, 0.5 * vel * t_body[:, None]), held_by(jnp.zeros_like(p0)))
+        b_pre = apply_jacobian(jac_pre, c, u_free) - end_pre
+        b_pre = b_pre.at[:, 0].set(gap0 + change_lin - apply_jacobian(jac_pre, c, u_lin - u_free)[:, 0] - jnp.minimum(gap0, 0.0))
+        pre_sets = sets._replace(enabled=pre, opposes=opposes_pre, cohesion=sets.cohesion * share, tension=zero)
+        op_pre, diag_pre = _flexibility(jac_pre, c, flex)
+        least = jnp.min(jnp.where(pre, share, 1.0), initial=1.0)
+        before = pc.solve(_apply_w, op_pre, diag_pre, b_pre, pre_sets, p_prior * share[:, None], params.tol,
+                          params.max_iter, least * momentum / dt)
+        p_pre = jnp.where(pre[:, None], before.force / share[:, None], 0.0)
+        # K_eff^-1 J^T p: the displacement p would give over the whole step (M^-1 p dt^2 / 2).
+        by_pre = groups.apply(flex, apply_jacobian_t(jac_pre, c, p_pre, n))
+        by_prior = groups.apply(flex, apply_jacobian_t(jac, c, jnp.where(pre[:, None], p_prior, 0.0), n))
+        accel_pre = accel + 2.0 * (by_pre - by_prior) / dt ** 2
+        (_, vel_a), (_, vel_b) = path(t_hit, 0, accel_pre), path(t_hit, 1, accel_pre)
+        v_hit = jnp.einsum("cij,cj->ci", jac_hit[:, 0], vel_a) + jnp.einsum("cij,cj->ci", jac_hit[:, 1], vel_b)
+        return _Ahead(v_hit=v_hit, accel=accel_pre, clock=clock, windowed=windowed, t_win=t_win, t_body=t_body,
+                      tau=tau, p_pre=p_pre, by_pre=by_pre, normal_pre=normal_pre, before=before,
+                      k_inv=flex if pinned else None)
+
+    idle = _Ahead(v_hit=jnp.zeros_like(v_hit), accel=jnp.zeros_like(accel), clock=jnp.zeros_like(model.bound_radius),
+                  windowed=jnp.zeros_like(c.valid), t_win=zero, t_body=jnp.zeros_like(model.bound_radius),
+                  tau=jnp.zeros_like(model.bound_radius), p_pre=jnp.zeros_like(p0), by_pre=jnp.zeros_like(accel),
+                  normal_pre=jnp.zeros_like(normal),
+                  before=pc.Solution(jnp.zeros_like(p0), jnp.zeros((), jnp.int32), jnp.zeros((), p0.dtype),
+                                     jnp.ones((), bool)),
+                  k_inv=k_inv if pinned else None)
+
+    def impact_round(carry, again):
+        v_hit, warm = carry
+        imp, phases = _poisson_impact(op_m, diag_m, v_hit, imp_sets, bounce, params, momentum, warm=warm)
+        ahead = jax.lax.cond(again, lambda _: idle, forces_before, imp)
+        return (ahead.v_hit, phases), (imp, ahead)
+
+    _, (rounds, aheads) = jax.lax.scan(impact_round, (v_hit, (jnp.zeros_like(v_hit), jnp.zeros_like(v_hit))),
+                                       jnp.arange(2) > 0)
+    imp_first, imp = (jax.tree.map(lambda x: x[i], rounds) for i in (0, 1))
+    ahead = jax.tree.map(lambda x: x[0], aheads)
+    accel, clock, windowed, t_win, t_body = ahead.accel, ahead.clock, ahead.windowed, ahead.t_win, ahead.t_body
+    tau, p_pre, by_pre, normal_pre, before = ahead.tau, ahead.p_pre, ahead.by_pre, ahead.normal_pre, ahead.before
+    if pinned:
+        k_inv = ahead.k_inv
     v_star = vel + groups.apply(m_inv, apply_jacobian_t(jac_hit, c, imp.force, n))
     # p acts until t*: the velocity changes by M^-1 p t* (= 2 by_pre tau / dt), the
     # displacement by M^-1 p (t* dt - t*^2 / 2) (= by_pre (2 tau - tau^2)).
