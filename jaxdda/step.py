@@ -449,8 +449,6 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
         # solution, so the frame holds no motion that the contacts cancel (a tilt predicted
         # from the free acceleration alone shifts every lever arm: 0.15 N in case 7.6).
         d_base = free_displacement(flex, mass, load, v_star, dt) + shift
-
-
         d_pred = d_base + groups.apply(flex, apply_jacobian_t(mid_frame(d_base + push0)[0], c, p_prior, n))
         if pinned:
             # A pinned body turns about its pin with the lever of the mid-step configuration
@@ -476,7 +474,6 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
         t_body = jnp.maximum(jnp.maximum(jax.ops.segment_max(jnp.where(windowed, t_win, 0.0), c.a, n),
                                          jax.ops.segment_max(jnp.where(windowed, t_win, 0.0), c.b, n)), 0.0)
         t_body = jnp.where(model.fixed, 0.0, t_body)
-
 
         # 1b. Forces before an impact: a windowed sustained contact (a body resting on or
         # pressed against another when a third strikes it at t*) carries a force p over

@@ -38,7 +38,7 @@ class Case:
             end, (_, infos) = jaxdda.rollout(scene.model, state, params, steps, checkpoint=CHECKPOINT)
             return observe(end, infos) + jnp.where(jnp.any(infos.overflow), jnp.nan, 0.0)
 
-        # One compiled program gives both the value and the gradient (each costs ~40 s to
+        # One compiled program gives both the value and the gradient (each costs minutes to
         # compile); the finite differences call it too.
         self.value_and_grad = jax.jit(jax.value_and_grad(f))
         self.jvp = jax.jit(lambda t, v: jax.jvp(f, (t,), (v,))) if forward else None
