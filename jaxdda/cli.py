@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -95,6 +96,10 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except (CapacityError, ConvergenceError) as err:
         print(f"jaxdda: simulation failed: {err}", file=sys.stderr)
+        return 1
+    except BrokenPipeError:  # the reader went away (``jaxdda list | head -3``): stop quietly
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # so that the interpreter's last flush cannot fail again
         return 1
 
 

@@ -144,6 +144,19 @@ def test_python_dash_m():
     assert result.stderr.startswith("jaxdda: error: unknown example")
 
 
+def test_a_closed_pipe_stops_the_listing_quietly():
+    """``jaxdda list | head -3``: the reader is gone before the listing is written."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        result = subprocess.run([sys.executable, "-m", "jaxdda", "list"], cwd=ROOT, stdout=write_end,
+                                stderr=subprocess.PIPE, text=True, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    finally:
+        os.close(write_end)
+    assert result.returncode == 1
+    assert result.stderr == ""
+
+
 def test_export_an_example_and_run_the_file(tmp_path, capsys):
     toml = tmp_path / "pull.toml"
     assert main(["export", "paper-7.8", str(toml)]) == 0
