@@ -487,9 +487,12 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
         windowed, lone_late = uncrowded(window), uncrowded(window_late)
         # Per body: the start of its window (its clock, or the impact on the other body of its
         # windowed contacts), 0 for bodies without one.
-        t_body = jnp.maximum(jnp.maximum(jax.ops.segment_max(jnp.where(windowed, t_win, 0.0), c.a, n),
-                                         jax.ops.segment_max(jnp.where(windowed, t_win, 0.0), c.b, n)), 0.0)
-        t_body = jnp.where(model.fixed, 0.0, t_body)
+        def start_of(rows):  # per free body: the latest t_win of its ``rows``, 0 for none
+            t = jnp.maximum(jax.ops.segment_max(jnp.where(rows, t_win, 0.0), c.a, n),
+                            jax.ops.segment_max(jnp.where(rows, t_win, 0.0), c.b, n))
+            return jnp.where(model.fixed, 0.0, jnp.maximum(t, 0.0))
+
+        t_body = start_of(windowed)
 
         # 1b. Forces before an impact: a windowed sustained contact (a body resting on or
         # pressed against another when a third strikes it at t*) carries a force p over
@@ -510,9 +513,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
         # e = 0.29 made 3.6 J (fuzz seed 16779).
         pre = (windowed | lone_late) & sustained & (t_win > SIMULTANEITY * dt)
         tau = t_body / dt
-        t_pre = jnp.maximum(t_body, jnp.maximum(jax.ops.segment_max(jnp.where(lone_late, t_win, 0.0), c.a, n),
-                                                jax.ops.segment_max(jnp.where(lone_late, t_win, 0.0), c.b, n)))
-        t_pre = jnp.where(model.fixed, 0.0, t_pre)
+        t_pre = start_of(windowed | lone_late)  # the end of the span its forces before t* are solved over
         tau_pre = t_pre / dt
         share = jnp.where(pre, (t_win / dt) ** 2, 1.0)  # q = p share
         u_free = vel * t_pre[:, None] + (d_free - vel * dt) * (tau_pre ** 2)[:, None]  # to t*, no contact force
