@@ -522,10 +522,11 @@ BATCH, STEPS, SAMPLE = 40, 50, 25  # SAMPLE: poses checked on the host every thi
 # missed as a ring's first impact (3869, 6012), a push kept after its source left (16710), a
 # late impact sized on last step's force of a body's one sustained contact (16779), a
 # light ring reversed between two heavy bodies, linearised twice only (9853), and a squeeze
-# kept after the block in a light ring's hole had left it, held up by the wall (5338).
+# kept after the block in a light ring's hole had left it, held up by the wall (5338), and
+# dropped from a ring that a heavy disk drove on (1978, found with the first fix of 5338).
 REGRESSION_SEEDS = (32, 58, 62, 82, 112, 194, 222, 191, 531, 2828, 567, 909, 1434, 1632, 2370, 2743, 3534,
                     598, 2547, 3661, 3855, 656, 2519, 2686, 3901, 1643, 7168, 367, 7013, 690, 5061,
-                    3869, 6012, 16710, 16779, 9853, 5338)
+                    3869, 6012, 16710, 16779, 9853, 5338, 1978)
 
 
 @settings(max_examples=1, derandomize=True, deadline=None, database=None, phases=[Phase.explicit, Phase.generate],
