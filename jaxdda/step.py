@@ -254,11 +254,13 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     d_free = free_displacement(k_inv, mass, load, vel, dt)
     w_own = _flexibility(jac, c, k_inv)[1][:, 0]
 
+    def opening(p):  # each end gap under the free motion and the forces p, less its own force's share
+        moved = d_free + groups.apply(k_inv, apply_jacobian_t(jac, c, p, n))
+        return gap0 + apply_jacobian(jac, c, moved)[:, 0] - w_own * p[:, 0]
+
     def drop_opening(carry):
         keep, _ = carry
-        p = jnp.where(keep[:, None], p0, 0.0)
-        moved = d_free + groups.apply(k_inv, apply_jacobian_t(jac, c, p, n))
-        opens = (gap0 + apply_jacobian(jac, c, moved)[:, 0] - w_own * p[:, 0] > 0) & ~cemented
+        opens = (opening(jnp.where(keep[:, None], p0, 0.0)) > 0) & ~cemented
         return keep & ~opens, jnp.any(keep & opens)
 
     # Nor those of contacts that separate at the start (v_n dt > d0), which carry no force
@@ -278,9 +280,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     lapsed = (v_rel[:, 0] * dt > params.margin) & ~driven[c.a] & ~driven[c.b] & ~cemented
     keep = jax.lax.while_loop(lambda carry: carry[1], drop_opening, (c.valid & ~lapsed, jnp.array(True)))[0]
     p_kept = jnp.where(keep[:, None], p0, 0.0)
-    closing = w_own * p_kept[:, 0] - gap0 - apply_jacobian(
-        jac, c, d_free + groups.apply(k_inv, apply_jacobian_t(jac, c, p_kept, n)))[:, 0]
-    p_held = jnp.clip(closing / jnp.where(w_own > 0, w_own, 1.0), 0.0, p_kept[:, 0])
+    p_held = jnp.clip(-opening(p_kept) / jnp.where(w_own > 0, w_own, 1.0), 0.0, p_kept[:, 0])
     part = jnp.where(cemented | (p_kept[:, 0] <= 0), 1.0, p_held / jnp.where(p_kept[:, 0] > 0, p_kept[:, 0], 1.0))
     p_prior = p_kept * part[:, None]  # last step's forces that still act
     push0 = groups.apply(k_inv, apply_jacobian_t(jac, c, p_prior, n))  # displacement by last step's forces
