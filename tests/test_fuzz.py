@@ -524,10 +524,12 @@ DRAWS, STEPS, SAMPLE = 4, 50, 25  # DRAWS: fresh scenes beside the regression se
 # late impact sized on last step's force of a body's one sustained contact (16779), a
 # light ring reversed between two heavy bodies, linearised twice only (9853), and a squeeze
 # kept after the block in a light ring's hole had left it, held up by the wall (5338), and
-# dropped from a ring that a heavy disk drove on (1978, found with the first fix of 5338).
+# dropped from a ring that a heavy disk drove on (1978, found with the first fix of 5338),
+# but kept on a ring a disk drove on more slowly than the block in its hole left (14193),
+# and a disk's centripetal force in a ring's hole, read as opening on the start tangent (19661).
 REGRESSION_SEEDS = (32, 58, 62, 82, 112, 194, 222, 191, 531, 2828, 567, 909, 1434, 1632, 2370, 2743, 3534,
                     598, 2547, 3661, 3855, 656, 2519, 2686, 3901, 1643, 7168, 367, 7013, 690, 5061,
-                    3869, 6012, 16710, 16779, 9853, 5338, 1978, 14193)
+                    3869, 6012, 16710, 16779, 9853, 5338, 1978, 14193, 19661)
 
 
 @settings(max_examples=1, derandomize=True, deadline=None, database=None, phases=[Phase.explicit, Phase.generate],
