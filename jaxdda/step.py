@@ -253,6 +253,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     # m/s instead of 1 m/s, and the impact sized for it made 290 J: fuzz seed 16710).
     d_free = free_displacement(k_inv, mass, load, vel, dt)
     w_own = _flexibility(jac, c, k_inv)[1][:, 0]
+    w_div = jnp.where(w_own > 0, w_own, 1.0)  # W_nn to divide by (0 between fixed bodies)
 
     # The free motion's end gaps are exact, not linear in the start frame: a disk running
     # round a ring's hole leaves the hole's start tangent at +0.09 m/s and meets the curving
@@ -274,7 +275,8 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     # Nor those of contacts that separate at the start (v_n dt > d0), which carry no force
     # from t = 0 on (Signorini's law at velocity level), unless they still approach once
     # each loaded contact that approaches (v_n dt < -d0) is stopped by its own plastic
-    # impulse (P = -v_n / W_nn, alone): a squeeze driven on. A force last step spent
+    # impulse (P = -v_n / W_nn, alone): a squeeze driven on; or once their free motion
+    # closes them again (gap_free <= d0: a hole curving back onto a disk). A force last step spent
     # stopping a heavy block against a light ring wedged on a wall (7e5 N) was kept, held
     # up by the wall's, after the block had left at 0.66 m/s: the pair's small mismatch
     # drove the 0.7 kg ring at 3e4 m/s^2 into an impact that made 0.32 J (fuzz seed 5338).
@@ -288,12 +290,12 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     # exactly): the wall, left alone, closed by 1e-11 m.
     v_rel = apply_jacobian(jac, c, vel)
     pushes = (p0[:, 0] > 0) & (v_rel[:, 0] * dt < -params.margin)
-    stop = jnp.where(pushes, -v_rel[:, 0] / jnp.where(w_own > 0, w_own, 1.0), 0.0)
+    stop = jnp.where(pushes, -v_rel[:, 0] / w_div, 0.0)
     driven = apply_jacobian(jac, c, groups.apply(k_inv, apply_jacobian_t(jac, c, jnp.zeros_like(p0).at[:, 0].set(stop), n)))
     lapsed = (jnp.minimum(v_rel[:, 0], v_rel[:, 0] + driven[:, 0]) * dt > params.margin) & (gap_free > params.margin) & ~cemented
     keep = jax.lax.while_loop(lambda carry: carry[1], drop_opening, (c.valid & ~lapsed, jnp.array(True)))[0]
     p_kept = jnp.where(keep[:, None], p0, 0.0)
-    p_held = jnp.clip(-opening(p_kept) / jnp.where(w_own > 0, w_own, 1.0), 0.0, p_kept[:, 0])
+    p_held = jnp.clip(-opening(p_kept) / w_div, 0.0, p_kept[:, 0])
     part = jnp.where(cemented | (p_kept[:, 0] <= 0), 1.0, p_held / jnp.where(p_kept[:, 0] > 0, p_kept[:, 0], 1.0))
     p_prior = p_kept * part[:, None]  # last step's forces that still act
     push0 = groups.apply(k_inv, apply_jacobian_t(jac, c, p_prior, n))  # displacement by last step's forces
