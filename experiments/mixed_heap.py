@@ -1,4 +1,4 @@
-"""A hard scene for the contact solve (issue 9, open): 52 disks and hexagons (rho 2600,
+"""A hard scene for the contact solve (issue 9): 52 disks and hexagons (rho 2600,
 mu 0.5, e 0.1) dropped into a box, dt = 5 ms, 500 steps. Prints the share of steps that
 converged, the largest iteration count and the largest penetration, and writes
 experiments/results/mixed_heap.json. Measured when found (2026-11-30): 65 % of the steps
