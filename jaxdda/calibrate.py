@@ -1,7 +1,7 @@
 """Fit physical parameters to a measured trajectory by gradient descent (optax).
 
 The gradient of the trajectory misfit comes from reverse mode through a checkpointed
-rollout, with the contact solves differentiated implicitly (``solver.pc``).
+rollout, with the contact solves differentiated implicitly (``solver.fista_newton``).
 """
 from __future__ import annotations
 

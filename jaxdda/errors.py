@@ -14,7 +14,7 @@ class ConvergenceError(RuntimeError):
     on_nonconvergence="raise")``), or it still did not at the smallest sub-step allowed
     (``"halve"``). ``step`` is the step's number (1-based), ``time`` the time at its
     start, ``dt`` the (sub-)step length tried last, ``residual`` and ``iterations`` that
-    solve's relative residual and projection-contraction iterations."""
+    solve's relative residual and iterations (products with W)."""
 
     def __init__(self, message: str, *, step: int, time: float, dt: float, residual: float, iterations: int):
         super().__init__(message)

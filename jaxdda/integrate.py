@@ -5,7 +5,7 @@ step is d = K_eff^-1 (f_eff + C p) (eqs. 20-24) and the end velocity is v+ = 2 d
 
 Newmark alone turns an impact whose gap g0 > 0 closes inside the step into
 v+ = 2 g0 / dt - v- (not -v-). We therefore resolve impacts first, at velocity level
-(restitution at the moment of impact t*: Poisson's law, step._poisson_impact), and place
+(restitution at the moment of impact t*: Poisson's law, step.resolve._poisson_impact), and place
 the impulse at t*: the body moves with its old velocity until t* and its new one after, which is the
 exact event-driven path for isolated impacts (see docs/design.md). For e = 1 and one
 frictionless contact this position is the paper's "double contact displacement" (eq. 46).

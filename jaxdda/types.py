@@ -199,7 +199,7 @@ class ContactReport:
     cemented: jax.Array  # (C,) bool: an intact cemented joint (its normal force may be a tension)
     gap: jax.Array  # (C,) gap at the start of the step
     # (C,) the normal forces of the contact's rows summed (mean over the step; a ring's hole
-    # holds its disk by two rows, see step.py), what presses the bodies together
+    # holds its disk by two rows, see step/resolve.py), what presses the bodies together
     bearing: jax.Array
 
 

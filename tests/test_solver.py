@@ -1,4 +1,4 @@
-"""The contact solve (solver/pc.py) on its own: random frictional contact problems of a
+"""The contact solve (solver/fista_newton.py) on its own: random frictional contact problems of a
 rigid block landing on two corners (a redundant pair: one self-equilibrated force mode),
 checked against the VI's own conditions (Signorini and Coulomb, eqs. 19 and 26-28), not
 against the solver's residual."""
@@ -9,7 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxdda.solver import pc
+from jaxdda.solver import fista_newton
 from jaxdda.solver.sets import ContactSets
 
 C = 2  # contacts per problem
@@ -58,7 +58,7 @@ def _solve(w, b, mu):
     sets = ContactSets(enabled=jnp.ones(C, bool), friction=jnp.full(C, mu), cohesion=jnp.zeros(C),
                        tension=jnp.zeros(C), rolling=jnp.zeros(C), partner=jnp.full(C, -1, jnp.int32))
     diag = jnp.diagonal(w).reshape(C, 3)
-    return pc.solve(_apply_w, w, diag, b, sets, jnp.zeros_like(b), jnp.asarray(1e-12), jnp.asarray(5000.0))
+    return fista_newton.solve(_apply_w, w, diag, b, sets, jnp.zeros_like(b), jnp.asarray(1e-12), jnp.asarray(5000.0))
 
 
 @pytest.fixture(scope="module")

@@ -19,7 +19,7 @@ here the shares are unknowns of the set itself: a pair may use any split, i.e.
     max(|p_t1| - mu p_n1, 0) + max(|p_t2| - mu p_n2, 0) <= c,
     max(-p_n1, 0) + max(-p_n2, 0) <= t,
 
-which is convex, so the fixed point of the projection-contraction iteration is the
+which is convex, so the fixed point of the projected iteration (paper eq. 40) is the
 compatible state with the split the paper's iteration converges to (k_t = |p_1| / |p_2|).
 """
 from __future__ import annotations

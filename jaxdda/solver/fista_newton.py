@@ -68,20 +68,20 @@ def solve(apply_w: Callable[[Any, jax.Array], jax.Array], operand: Any, w_diag: 
     # finds no better point leaves FISTA's momentum as it was.
     def cond(carry):
         fista = carry[0]
-        return (fista[8] > tol) & (fista[7] < max_iter)
+        return (fista.res_best > tol) & (fista.k < max_iter)
 
     def body(carry):
         fista, stall = carry
         fista = _iterate(*args, fista, tol, max_iter, force_scale, stall)
-        y, k, res = _newton(*args, fista[6], fista[7], fista[8], tol, max_iter, force_scale)
-        fresh = _fista_start(*args, y, k, fista[5], force_scale)
-        kept = fista[:7] + (k, fista[8], k, fista[10])
-        return jax.tree.map(lambda a, b: jnp.where(res < fista[8], a, b), fresh, kept), 2 * stall
+        y, k, res = _newton(*args, fista.y_best, fista.k, fista.res_best, tol, max_iter, force_scale)
+        fresh = _fista_start(*args, y, k, fista.lip, force_scale)
+        kept = fista._replace(k=k, k_mark=k)
+        return jax.tree.map(lambda a, b: jnp.where(res < fista.res_best, a, b), fresh, kept), 2 * stall
 
     y0 = p0 / jnp.where(scale > 0, scale, 1.0)
     fista = _fista_start(*args, y0, jnp.int32(0), jnp.ones_like(tol), force_scale)
     fista, _ = jax.lax.while_loop(cond, body, (fista, jnp.int32(STALL)))
-    y, k, res = fista[6], fista[7], fista[8]
+    y, k, res = fista.y_best, fista.k, fista.res_best
     y = _implicit(apply_w, operand, b, sets, scale, y)
     return Solution(scale * y, k, res, res <= tol)
 
@@ -112,14 +112,29 @@ def _maps(apply_w, operand, b, sets, scale, force_scale):
     return proj, amul, scale * b, residual
 
 
-def _fista_start(apply_w, operand, b, sets, scale, y0, k0, lip0, force_scale):
-    """The state of ``_iterate`` starting at P(y0) after k0 iterations, with L = lip0:
-    (y, S W S y, y_prev, its product, t, L, y_best, k, res_best, k_mark, res_mark)."""
+class FistaState(NamedTuple):
+    """The iterate of ``_iterate`` (scaled unknowns y = p / scale)."""
+
+    y: jax.Array  # (C, 3) the iterate
+    ay: jax.Array  # S W S y
+    y_prev: jax.Array  # the previous iterate (momentum)
+    ay_prev: jax.Array  # S W S y_prev
+    t: jax.Array  # () Nesterov's momentum parameter
+    lip: jax.Array  # () L, the step's curvature bound
+    y_best: jax.Array  # the iterate of least residual
+    k: jax.Array  # () int32 iterations so far (products with W)
+    res_best: jax.Array  # () the least residual
+    k_mark: jax.Array  # () the iteration at which res_best last halved
+    res_mark: jax.Array  # () res_best then
+
+
+def _fista_start(apply_w, operand, b, sets, scale, y0, k0, lip0, force_scale) -> FistaState:
+    """The state of ``_iterate`` starting at P(y0) after k0 iterations, with L = lip0."""
     proj, amul, c, residual = _maps(apply_w, operand, b, sets, scale, force_scale)
     y0 = proj(jnp.where(sets.enabled[:, None], y0, 0.0))
     a0 = amul(y0)
     res0 = residual(y0, a0 + c)
-    return (y0, a0, y0, a0, jnp.ones_like(lip0), lip0, y0, k0, res0, k0, res0)
+    return FistaState(y0, a0, y0, a0, jnp.ones_like(lip0), lip0, y0, k0, res0, k0, res0)
 
 
 def _iterate(apply_w, operand, b, sets, scale, state, tol, max_iter, force_scale, stall):
@@ -148,9 +163,8 @@ def _iterate(apply_w, operand, b, sets, scale, state, tol, max_iter, force_scale
     """
     proj, amul, c, residual = _maps(apply_w, operand, b, sets, scale, force_scale)
 
-    def cond(carry):
-        k, res, k_mark = carry[-4], carry[-3], carry[-2]
-        return (res > tol) & (k < max_iter) & (k - k_mark <= stall)
+    def cond(s: FistaState):
+        return (s.res_best > tol) & (s.k < max_iter) & (s.k - s.k_mark <= stall)
 
     def body(carry):
         y, ay, y_prev, ay_prev, t, lip, y_best, k, res_best, k_mark, res_mark = carry
@@ -173,8 +187,8 @@ def _iterate(apply_w, operand, b, sets, scale, state, tol, max_iter, force_scale
         better = res < res_best
         res_best = jnp.where(better, res, res_best)
         halved = res_best <= 0.5 * res_mark
-        return (y, ay, y_prev, ay_prev, t, lip, jnp.where(better, y, y_best), k + 1, res_best,
-                jnp.where(halved, k + 1, k_mark), jnp.where(halved, res_best, res_mark))
+        return FistaState(y, ay, y_prev, ay_prev, t, lip, jnp.where(better, y, y_best), k + 1, res_best,
+                          jnp.where(halved, k + 1, k_mark), jnp.where(halved, res_best, res_mark))
 
     return jax.lax.while_loop(cond, body, state)
 

@@ -1,37 +1,26 @@
-"""One PB-DDA time step and its rollout (the pipeline of paper Section 4).
-
-    state --detect--> contacts --impacts--> v* --contact VI--> p --integrate--> state'
+"""Stages "impacts" and "contact VI" of the present scheme: the impacts of the step at
+their instants (Poisson's law, velocity level) and the contact forces over the step
+(position level, paper eqs. 39-41), from the step's operators and contact frame.
 """
 from __future__ import annotations
 
-import dataclasses
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 
 from jaxdda import groups, pins
-from jaxdda.bodies.elastic import (current_shape, elastic_matrix, finite_rotation_shift, mesh_rotation,
-                                   rotated_stress, stiffness, stress_load, updated_stretch)
-from jaxdda.bodies.mass import external_load, mass_matrix
-from jaxdda.connectors import connector_forces, connector_terms
-from jaxdda.contact.adjoint import adjoint_partner
-from jaxdda.contact.detect import contact_materials, detect, world_vertices
-from jaxdda.contact.keys import lookup
-from jaxdda.contact.kinematics import (apply_jacobian, apply_jacobian_t, clockwise, discrete_gradient, gap_change,
-                                       gap_change_at, gap_frame, gap_frame_at, jacobians, jacobians_at)
+from jaxdda.contact.kinematics import (apply_jacobian, discrete_gradient, gap_change_at, gap_frame,
+                                       gap_frame_at, jacobians, jacobians_at)
 from jaxdda.integrate import (SIMULTANEITY, common_impact_time, exact_impact_time, free_displacement, impact_clock,
                               matvec, mesh_clock, newmark_velocity, strike_time)
 from jaxdda.groups import Flexibility
-from jaxdda.solver import pc
+from jaxdda.solver import fista_newton
 from jaxdda.solver.sets import ContactSets, sticking
-from jaxdda.types import B_HOLE, NO_JOINT, POLYGON, ContactReport, Contacts, Model, Params, State, StepInfo
-
-
-def _warm_start(prev_key: jax.Array, prev_force: jax.Array, key: jax.Array) -> jax.Array:
-    """Last step's force of the same feature pair, else zero."""
-    idx, found = lookup(prev_key, key)
-    return jnp.where(found[:, None], prev_force[idx], 0.0)
+from jaxdda.step import frame as frame_stage
+from jaxdda.step.frame import ContactFrame
+from jaxdda.step.operators import Operators, apply_w, flexibility, is_pinned, respond
+from jaxdda.types import B_HOLE, Model, Params, State
 
 
 def _at_partner(x: jax.Array, partner: jax.Array) -> jax.Array:
@@ -63,15 +52,9 @@ def cluster_min(x: jax.Array, joined: jax.Array, a: jax.Array, b: jax.Array, fix
     return jnp.where(label < n, least[label], x)
 
 
-def _apply_w(operand, p: jax.Array) -> jax.Array:
-    """W p = J inv J^T p for operand (jac, contacts, inv): the contact flexibility."""
-    jac, c, inv = operand
-    return apply_jacobian(jac, c, groups.apply(inv, apply_jacobian_t(jac, c, p, inv.single.shape[0])))
-
-
 def _poisson_impact(op_m, diag_m, v_hit: jax.Array, imp_sets: ContactSets, bounce: jax.Array, params: Params,
                     momentum: jax.Array, warm: tuple[jax.Array, jax.Array] | None = None
-                    ) -> tuple[pc.Solution, tuple[jax.Array, jax.Array]]:
+                    ) -> tuple[fista_newton.Solution, tuple[jax.Array, jax.Array]]:
     """Impulses P (C, 3) of the impacts by Poisson's law with Coulomb friction, in two phases.
 
     Compression: the plastic impact, P1 solving the VI with G = W P1 + v(t*) (no contact
@@ -95,65 +78,16 @@ def _poisson_impact(op_m, diag_m, v_hit: jax.Array, imp_sets: ContactSets, bounc
     def phase(comp, restitution):  # one solve in a loop of the two phases (the solver is most of the step's code)
         rebound = jnp.where(restitution, bounce * jnp.maximum(comp[:, 0], 0.0), 0.0)
         kick = jnp.zeros_like(v_hit).at[:, 0].set(rebound)
-        b = jnp.where(restitution, _apply_w(op_m, comp + kick) + v_hit, v_hit)
+        b = jnp.where(restitution, apply_w(op_m, comp + kick) + v_hit, v_hit)
         sets = imp_sets._replace(cohesion=jnp.where(restitution, imp_sets.friction * rebound, imp_sets.cohesion),
                                  partner=jnp.where(restitution, -1, imp_sets.partner))
-        sol = pc.solve(_apply_w, op_m, diag_m, b, sets, jnp.where(restitution, warm[1], warm[0]), params.tol,
+        sol = fista_newton.solve(apply_w, op_m, diag_m, b, sets, jnp.where(restitution, warm[1], warm[0]), params.tol,
                        params.max_iter, momentum)
         return jnp.where(restitution, comp, sol.force), (sol, kick)
 
     comp, (sols, kicks) = jax.lax.scan(phase, jnp.zeros_like(v_hit), jnp.array([False, True]))
-    return pc.Solution(comp + kicks[1] + sols.force[1], jnp.sum(sols.iterations).astype(jnp.int32),
+    return fista_newton.Solution(comp + kicks[1] + sols.force[1], jnp.sum(sols.iterations).astype(jnp.int32),
                        jnp.max(sols.residual), jnp.all(sols.converged)), (sols.force[0], sols.force[1])
-
-
-def _flexibility(jac: jax.Array, c: Contacts, inv: Flexibility):
-    """The operand of ``_apply_w`` for W = J inv J^T, and W's diagonal (C, 3) (with the
-    coupling of a contact's two bodies where they share a dof group, eq. 112)."""
-    diag = (jnp.einsum("cij,cjk,cik->ci", jac[:, 0], groups.diagonal(inv, c.a), jac[:, 0])
-            + jnp.einsum("cij,cjk,cik->ci", jac[:, 1], groups.diagonal(inv, c.b), jac[:, 1]))
-    cross = groups.coupling(inv, c.a, c.b)
-    if cross is not None:
-        diag = diag + 2.0 * jnp.einsum("cij,cjk,cik->ci", jac[:, 0], cross, jac[:, 1])
-    return (jac, c, inv), diag
-
-
-def detection_reach(model: Model, state: State, params: Params) -> tuple[jax.Array, jax.Array]:
-    """Per body: the distance (N,) it may travel this step plus half the margin d0, and
-    the angle (N,) it may turn.
-
-    Twice the velocity terms: an impact may reverse a body, and a pair is checked with
-    the sum of its two reaches, so impacts falling anywhere inside the step are found.
-    """
-    spin = jnp.abs(state.velocity[:, 2])
-    speed = jnp.linalg.norm(state.velocity[:, :2], axis=-1) + spin * model.bound_radius
-    accel = jnp.linalg.norm(params.gravity) * model.gravity_scale
-    reach = 2.0 * params.dt * speed + params.dt ** 2 * accel + 0.5 * params.margin
-    turn = 2.0 * params.dt * spin
-    return jnp.where(model.fixed, 0.5 * params.margin, reach), jnp.where(model.fixed, 0.0, turn)
-
-
-def _contact_sets(model: Model, state: State, params: Params, c: Contacts, normal: jax.Array):
-    """The constraint data of this step's contacts, and which are cemented joints (not
-    broken). A joint's strength is t times its integrity; adjoint joints share the
-    smaller of their two integrities (one budget per pair, as ``solver.sets`` needs)."""
-    mat_a, mat_b = contact_materials(model, c)
-    joint, is_joint = lookup(model.joint_key, c.key)
-    integrity = jnp.where(c.valid & is_joint, state.joint_integrity[joint], 0.0)
-    cemented = integrity > 0
-    partner = adjoint_partner(model, c, normal)
-    with_partner = (partner >= 0) & cemented[jnp.maximum(partner, 0)]
-    integrity = jnp.where(with_partner, jnp.minimum(integrity, integrity[jnp.maximum(partner, 0)]), integrity)
-    particle = (model.kind[c.a] != POLYGON) | (model.kind[c.b] != POLYGON)
-    sets = ContactSets(
-        enabled=c.valid,
-        friction=params.friction[mat_a, mat_b],
-        cohesion=params.cohesion[mat_a, mat_b],
-        tension=params.tensile[mat_a, mat_b] * integrity,
-        rolling=jnp.where(particle, params.rolling[mat_a, mat_b], 0.0),
-        partner=partner,
-    )
-    return sets, cemented, joint
 
 
 # The overlap a ring's cut row allows, as a share of the smaller body's size (step 2).
@@ -177,70 +111,45 @@ class _Ahead(NamedTuple):
     p_pre: jax.Array  # (C, 3) the forces before an impact
     by_pre: jax.Array  # (N, dofs) K_eff^-1 J^T p_pre
     normal_pre: jax.Array  # (C, 2) their frame
-    before: pc.Solution  # their solve
+    before: fista_newton.Solution  # their solve
     k_inv: Flexibility | None  # a pinned scene's flexibility on the mid-step levers
 
 
-def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
-    """Advance one step of length params.dt. Pure: jit, vmap and scan apply."""
+class Resolution(NamedTuple):
+    """What the impacts and the contact VI decide for the step."""
+
+    displacement: jax.Array  # (N, 6) the step's displacement d (with the impacts' shift)
+    velocity: jax.Array  # (N, 6) the end velocity (before pins hold it)
+    memory: jax.Array  # (C, 3) each contact's force to warm-start the next step
+    force: jax.Array  # (C, 3) the contact forces over the step (the VI's solution)
+    gap_end: jax.Array  # (C,) their end gaps
+    w_nn: jax.Array  # (C,) W's normal diagonal at the solution
+    force_scale: jax.Array  # () the step's force scale
+    point: jax.Array  # (C, 2) the contact points of the mid-step frame
+    normal: jax.Array  # (C, 2) its normals
+    parts: tuple  # ((mean force (C, 3) over the step, its normal (C, 2)), ...) for the report
+    solutions: tuple  # the step's solves (fista_newton.Solution, some stacked over loops)
+
+
+def resolve_contacts(model: Model, state: State, params: Params, ops: Operators, frame: ContactFrame) -> Resolution:
+    """The step's impacts and contact forces (``model`` in the bodies' current shape)."""
     n, dt = model.n_bodies, params.dt
     proj = model.dof_projector
-    base = model
-    model = current_shape(base, state.stretch)  # local geometry in each body's current shape
-    volume = base.area * jnp.abs(jnp.linalg.det(state.stretch))
-    mass = mass_matrix(base, params, state)
-    stiff = stiffness(elastic_matrix(params.young, params.poisson, base.plane_strain), volume)  # rigid: 0
+    pinned = is_pinned(model)
     centroid = state.centroid
-    load = (external_load(model, params, centroid, state.rotation, state.time + dt)
-            + stress_load(state.stress, volume))
-    coupling = None
-    if model.connector_a.shape[0]:  # connectors: their load, and their stiffness in K_eff (eqs. 80-92)
-        conn_load, conn_stiff = connector_terms(base, params, state)
-        ends = jnp.stack([model.connector_a, model.connector_b], 1)
-        load = load + jax.ops.segment_sum(conn_load.reshape(-1, conn_load.shape[-1]), ends.reshape(-1), n)
-        coupling = (ends, conn_stiff)
-    maps = None
-    pinned = model.pin_body.shape[0] > 0  # fixed points that constrain a movable body (pins.py)
-    if model.group_members.shape[0]:  # each group member's dofs from the group's reduced ones
-        verts = world_vertices(model, centroid, state.rotation)
-        maps = jnp.where((model.mesh >= 0)[:, None, None], groups.mesh_maps(verts), model.dof_basis)
-        if pinned:  # a pinned body's dofs: the null space of its pins' constraints (at the start)
-            maps = pins.pin_maps(model, maps, centroid)
-    k_eff = stiff + 2.0 * mass / dt ** 2
-    k_inv = groups.grouped(k_eff, proj, model, maps, coupling)
-    # Impacts see the step's flexibility: (M + K dt^2 / 2)^-1 = (2 / dt^2) K_eff^-1, which is
-    # M^-1 for rigid bodies; a stiff mode (omega dt >> 1: a meshed block of E = 1e14, a
-    # stiff bolt) takes an impulse as the structure it is over a step, not as loose masses.
-    m_inv = groups.scaled(k_inv, 2.0 / dt ** 2)
-    vel = params.dynamic * matvec(proj, state.velocity)  # static analysis: each step starts at rest
-
-    # Detection is discrete (which pairs to test): no derivative flows through it.
-    contacts, needed = detect(model, *jax.lax.stop_gradient(
-        (centroid, state.rotation, *detection_reach(model, state, params), params.margin)))
-    c = contacts
-    gap_now, normal, point = gap_frame(c, centroid, state.rotation)
-    jac = jacobians(c, normal, point, gap_now, centroid)
-    # Gaps as (gap at the origin) + (exact change over the displacement since): a body
-    # at 50 m that moved 1e-13 m keeps its gaps exact, not rounded to ulp(50 m).
-    gap_ref = gap_frame(c, state.origin, jnp.zeros_like(state.rotation))[0]
-    gap0 = gap_ref + gap_change(c, state.origin, jnp.zeros_like(state.rotation), state.displacement, state.rotation)
+    mass, stiff, load, k_eff, k_inv, m_inv = ops.mass, ops.stiff, ops.load, ops.k_eff, ops.k_inv, ops.m_inv
+    vel, maps, coupling, momentum = ops.vel, ops.maps, ops.coupling, ops.momentum
+    c, gap0, normal, point, jac = frame.contacts, frame.gap0, frame.normal, frame.point, frame.jac
+    sets, cemented, restitution, p0, touch = frame.sets, frame.cemented, frame.restitution, frame.p0, frame.touch
 
     def gap_change_by(d):  # exact change of the gaps over the step's displacement d (N, 6)
-        d_c = pins.centroid_step(model, centroid, d) if pinned else d[:, :2]  # pinned: on the arc about the pin
-        return gap_change(c, centroid, state.rotation, d_c, d[:, 2], d[:, 3:])
-
-    sets, cemented, joint = _contact_sets(model, state, params, c, normal)
-    restitution = params.restitution[contact_materials(model, c)]
-
-    # Force scale of the scene this step: residuals far below it are round-off.
-    momentum = jnp.max(jnp.abs(matvec(mass, vel)) + jnp.abs(load) * dt, initial=0.0)
+        return frame_stage.gap_change_by(model, state, c, d)
 
     # 1. Impacts: Poisson's law at the impact time t*, impulses P (velocity level).
     # A contact that carried force last step, or is cemented, is sustained, not struck:
     # it is closed (its gap, however small, is not a free fall to an impact), it takes
     # part in the impact solve (so impulses pass through a resting stack) and it does not
     # bounce. Cohesion and cement are finite forces: they give no impulse.
-    p0 = _warm_start(state.contact_key, state.contact_force, c.key)
     sustained = (p0[:, 0] > 0) | cemented
     # The acceleration towards an impact includes last step's contact forces: a disk
     # falling onto a resting column meets a column held up by the floor, not one that
@@ -252,7 +161,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     # first into the second (kept, that push drove a light disk into a heavy ring at 3.4
     # m/s instead of 1 m/s, and the impact sized for it made 290 J: fuzz seed 16710).
     d_free = free_displacement(k_inv, mass, load, vel, dt)
-    w_own = _flexibility(jac, c, k_inv)[1][:, 0]
+    w_own = flexibility(jac, c, k_inv)[1][:, 0]
     w_div = jnp.where(w_own > 0, w_own, 1.0)  # W_nn to divide by (0 between fixed bodies)
 
     # The free motion's end gaps are exact, not linear in the start frame: a disk running
@@ -264,7 +173,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     gap_free = gap0 + gap_change_by(d_free)
 
     def opening(p):  # each end gap under the free motion and the forces p, less its own force's share
-        pushed = groups.apply(k_inv, apply_jacobian_t(jac, c, p, n))
+        pushed = respond(k_inv, jac, c, p)
         return gap_free + apply_jacobian(jac, c, pushed)[:, 0] - w_own * p[:, 0]
 
     def drop_opening(carry):
@@ -291,19 +200,16 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     v_rel = apply_jacobian(jac, c, vel)
     pushes = (p0[:, 0] > 0) & (v_rel[:, 0] * dt < -params.margin)
     stop = jnp.where(pushes, -v_rel[:, 0] / w_div, 0.0)
-    driven = apply_jacobian(jac, c, groups.apply(k_inv, apply_jacobian_t(jac, c, jnp.zeros_like(p0).at[:, 0].set(stop), n)))
+    driven = apply_jacobian(jac, c, respond(k_inv, jac, c, jnp.zeros_like(p0).at[:, 0].set(stop)))
     lapsed = (jnp.minimum(v_rel[:, 0], v_rel[:, 0] + driven[:, 0]) * dt > params.margin) & (gap_free > params.margin) & ~cemented
     keep = jax.lax.while_loop(lambda carry: carry[1], drop_opening, (c.valid & ~lapsed, jnp.array(True)))[0]
     p_kept = jnp.where(keep[:, None], p0, 0.0)
     p_held = jnp.clip(-opening(p_kept) / w_div, 0.0, p_kept[:, 0])
     part = jnp.where(cemented | (p_kept[:, 0] <= 0), 1.0, p_held / jnp.where(p_kept[:, 0] > 0, p_kept[:, 0], 1.0))
     p_prior = p_kept * part[:, None]  # last step's forces that still act
-    push0 = groups.apply(k_inv, apply_jacobian_t(jac, c, p_prior, n))  # displacement by last step's forces
+    push0 = respond(k_inv, jac, c, p_prior)  # displacement by last step's forces
     accel = 2.0 * (d_free + push0 - vel * dt) / dt ** 2
     a_rel = apply_jacobian(jac, c, accel)
-    # A gap within round-off of the coordinates it comes from is a touch (64 ulp).
-    reach = jnp.maximum(jnp.max(jnp.abs(state.origin[c.a]), -1), jnp.max(jnp.abs(state.origin[c.b]), -1))
-    touch = 64.0 * jnp.finfo(gap0.dtype).eps * (reach + model.bound_radius[c.a] + model.bound_radius[c.b])
     # The time of impact on the exact gap along the predicted path (a concave contact
     # closes sooner, a convex one later than its linearisation says), and each contact's
     # frame and relative velocity at that instant: the impulse acts there, so Poisson's
@@ -397,7 +303,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     loaded = (p_prior[:, 0] > 0) | cemented
     impacting = c.valid & (approaching | loaded | closed)
     bounce = jnp.where(sustained | ~approaching, 0.0, restitution)
-    op_m, diag_m = _flexibility(jac_hit, c, m_inv)
+    op_m, diag_m = flexibility(jac_hit, c, m_inv)
     zero = jnp.zeros_like(gap0)
     imp_sets = sets._replace(enabled=impacting, cohesion=zero, tension=zero)
     def mid_frame(d, start=None):  # the frame half-way from ``start`` (default: the step's start) to d
@@ -441,7 +347,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
         """What the first round's impulses ``imp`` decide: the windows, and the forces
         before an impact (1b), and the velocities at t* that the second round solves on."""
         flex = k_inv
-        v_star = vel + groups.apply(m_inv, apply_jacobian_t(jac_hit, c, imp.force, n))
+        v_star = vel + respond(m_inv, jac_hit, c, imp.force)
         struck = c.valid & ((approaching & ~sustained) | rushing)
         clock = impact_clock(t_hit, struck, impacting & (imp.force[:, 0] > 0), c.a, c.b, model.fixed)
         clock = mesh_clock(model.mesh, clock)
@@ -497,7 +403,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
         # solution, so the frame holds no motion that the contacts cancel (a tilt predicted
         # from the free acceleration alone shifts every lever arm: 0.15 N in case 7.6).
         d_base = free_displacement(flex, mass, load, v_star, dt) + shift
-        d_pred = d_base + groups.apply(flex, apply_jacobian_t(mid_frame(d_base + push0)[0], c, p_prior, n))
+        d_pred = d_base + respond(flex, mid_frame(d_base + push0)[0], c, p_prior)
         if pinned:
             # A pinned body turns about its pin with the lever of the mid-step configuration
             # (on the predictor's arc), as contact forces act in the mid-step frame: the torque
@@ -506,7 +412,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
             maps_mid = pins.pin_maps(model, maps, pins.mid_centroid(model, centroid, d_pred))
             flex = groups.grouped(k_eff, proj, model, maps_mid, coupling)
             d_base = free_displacement(flex, mass, load, v_star, dt) + shift
-            d_pred = d_base + groups.apply(flex, apply_jacobian_t(mid_frame(d_base + push0)[0], c, p_prior, n))
+            d_pred = d_base + respond(flex, mid_frame(d_base + push0)[0], c, p_prior)
         change_pred = gap_change_by(d_pred)
         gap_pred = gap0 + change_pred
         # ... and only where it is the only force on its free bodies: no other of their
@@ -560,17 +466,17 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
         b_pre = apply_jacobian(jac_pre, c, u_free) - end_pre
         b_pre = b_pre.at[:, 0].set(gap0 + change_lin - apply_jacobian(jac_pre, c, u_lin - u_free)[:, 0] - jnp.minimum(gap0, 0.0))
         pre_sets = sets._replace(enabled=pre, opposes=opposes_pre, cohesion=sets.cohesion * share, tension=zero)
-        op_pre, diag_pre = _flexibility(jac_pre, c, flex)
+        op_pre, diag_pre = flexibility(jac_pre, c, flex)
         least = jnp.min(jnp.where(pre, share, 1.0), initial=1.0)
-        before = pc.solve(_apply_w, op_pre, diag_pre, b_pre, pre_sets, p_prior * share[:, None], params.tol,
+        before = fista_newton.solve(apply_w, op_pre, diag_pre, b_pre, pre_sets, p_prior * share[:, None], params.tol,
                           params.max_iter, least * momentum / dt)
         p_pre = jnp.where(pre[:, None], before.force / share[:, None], 0.0)
         # K_eff^-1 J^T p: the displacement p would give over the whole step (M^-1 p dt^2 / 2).
-        by_pre = groups.apply(flex, apply_jacobian_t(jac_pre, c, p_pre, n))
-        by_prior = groups.apply(flex, apply_jacobian_t(jac, c, jnp.where(pre[:, None], p_prior, 0.0), n))
+        by_pre = respond(flex, jac_pre, c, p_pre)
+        by_prior = respond(flex, jac, c, jnp.where(pre[:, None], p_prior, 0.0))
         accel_pre = accel + 2.0 * (by_pre - by_prior) / dt ** 2
         p_pre = jnp.where(windowed[:, None], p_pre, 0.0)  # a late impact's: only for its velocity at t*
-        by_pre = groups.apply(flex, apply_jacobian_t(jac_pre, c, p_pre, n))
+        by_pre = respond(flex, jac_pre, c, p_pre)
         (_, vel_a), (_, vel_b) = path(t_hit, 0, accel_pre), path(t_hit, 1, accel_pre)
         v_hit = jnp.einsum("cij,cj->ci", jac_hit[:, 0], vel_a) + jnp.einsum("cij,cj->ci", jac_hit[:, 1], vel_b)
         return _Ahead(v_hit=v_hit, accel=accel_pre, clock=clock, windowed=windowed, t_win=t_win, t_body=t_body,
@@ -581,7 +487,7 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
                   windowed=jnp.zeros_like(c.valid), t_win=zero, t_body=jnp.zeros_like(model.bound_radius),
                   tau=jnp.zeros_like(model.bound_radius), p_pre=jnp.zeros_like(p0), by_pre=jnp.zeros_like(accel),
                   normal_pre=jnp.zeros_like(normal),
-                  before=pc.Solution(jnp.zeros_like(p0), jnp.zeros((), jnp.int32), jnp.zeros((), p0.dtype),
+                  before=fista_newton.Solution(jnp.zeros_like(p0), jnp.zeros((), jnp.int32), jnp.zeros((), p0.dtype),
                                      jnp.ones((), bool)),
                   k_inv=k_inv if pinned else None)
 
@@ -599,13 +505,13 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     tau, p_pre, by_pre, normal_pre, before = ahead.tau, ahead.p_pre, ahead.by_pre, ahead.normal_pre, ahead.before
     if pinned:
         k_inv = ahead.k_inv
-    v_star = vel + groups.apply(m_inv, apply_jacobian_t(jac_hit, c, imp.force, n))
+    v_star = vel + respond(m_inv, jac_hit, c, imp.force)
     # p acts until t*: the velocity changes by M^-1 p t* (= 2 by_pre tau / dt), the
     # displacement by M^-1 p (t* dt - t*^2 / 2) (= by_pre (2 tau - tau^2)).
     shift = -(v_star - vel) * clock[:, None] + by_pre * (tau * (1.0 - tau))[:, None]
     d_base = free_displacement(k_inv, mass, load, v_star, dt) + shift + by_pre * tau[:, None]
     carried = jnp.where(windowed[:, None], 0.0, p_prior)  # a windowed contact's force acts from t* only
-    d_pred = d_base + groups.apply(k_inv, apply_jacobian_t(mid_frame(d_base + push0)[0], c, carried, n))
+    d_pred = d_base + respond(k_inv, mid_frame(d_base + push0)[0], c, carried)
     change_pred = gap_change_by(d_pred)
     rest = jnp.where(windowed, dt - t_win, dt)
     late = jnp.where(windowed, t_win * dt / rest, 0.0)
@@ -691,43 +597,27 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
                 partner=jnp.concatenate([con_sets.partner, jnp.full_like(con_sets.partner, -1)]),
                 opposes=jnp.concatenate([con_sets.opposes, jnp.zeros_like(con_sets.opposes)]))
             jac_two = jnp.concatenate([jac_l, jac_cut])
-            op, diag = _flexibility(jac_two, rows, k_inv)
+            op, diag = flexibility(jac_two, rows, k_inv)
             b_two = jnp.concatenate([b_l, b_cut.at[:, 0].add(slack)])
-            sol = pc.solve(_apply_w, op, diag, b_two, two_sets, warm, params.tol, params.max_iter, force_scale)
-            d_next = d_base + groups.apply(k_inv, apply_jacobian_t(jac_two, rows, sol.force, n))
+            sol = fista_newton.solve(apply_w, op, diag, b_two, two_sets, warm, params.tol, params.max_iter, force_scale)
+            d_next = d_base + respond(k_inv, jac_two, rows, sol.force)
             warm_next = jnp.concatenate([sol.force[:n_rows], jnp.zeros_like(p0)])
             return (d_next, warm_next, jac_l, b_l, (jac_two, nrm, pt, b_l, con_sets, sol), last[1]), sol._replace(force=())
 
-        skipped = pc.Solution((), jnp.zeros((), jnp.int32), jnp.zeros((), p0.dtype), jnp.ones((), bool))
+        skipped = fista_newton.Solution((), jnp.zeros((), jnp.int32), jnp.zeros((), p0.dtype), jnp.ones((), bool))
         return jax.lax.cond(run, solve_at, lambda _: (carry, skipped), None)
 
     none = (jnp.zeros((2 * n_rows,) + jac.shape[1:], jac.dtype), jnp.zeros_like(normal), jnp.zeros_like(point),
             jnp.zeros_like(p0), sets._replace(opposes=jnp.zeros(p0.shape[:1] + (2,), p0.dtype)),
-            pc.Solution(jnp.zeros((2 * n_rows, 3), p0.dtype), jnp.zeros((), jnp.int32), jnp.zeros((), p0.dtype),
+            fista_newton.Solution(jnp.zeros((2 * n_rows, 3), p0.dtype), jnp.zeros((), jnp.int32), jnp.zeros((), p0.dtype),
                         jnp.ones((), bool)))
     start = (d_pred, jnp.concatenate([p0, jnp.zeros_like(p0)]), jnp.zeros_like(jac), jnp.zeros_like(p0), none,
              jnp.zeros_like(normal))
     (d_geo, _, _, _, last, normal_cut), passes = jax.lax.scan(
         relinearise, start, jnp.arange(LINEARISATIONS + EXTRA_LINEARISATIONS))
     jac_two, normal_mid, point_mid, b_con, con_sets, both = last
-    op_k, diag_k = _flexibility(jac_two, rows, k_inv)
+    op_k, diag_k = flexibility(jac_two, rows, k_inv)
     con, p_cut = both._replace(force=both.force[:n_rows]), both.force[n_rows:]
-
-    # 3. Cement: an inextensible joint (hypothesis ii) that still opens under its full
-    # share of the strength has failed (eq. 63); it never heals (hypothesis iv). The
-    # opening over W_nn is the force e it lacks to stay closed; a smoothed rupture (width
-    # w > 0) keeps 1 - e / w of the joint's strength instead of none.
-    gap_end = _apply_w(op_k, both.force)[:n_rows, 0] + b_con[:, 0]
-    size = jax.lax.stop_gradient(jnp.maximum(jnp.max(jnp.abs(con.force), initial=0.0), force_scale))
-    lacking = jnp.where(cemented & (con.force[:, 0] < 0),
-                        gap_end / jnp.where(diag_k[:n_rows, 0] > 0, diag_k[:n_rows, 0], 1.0) - 10.0 * params.tol * size, 0.0)
-    width = params.rupture_width
-    keep = jnp.where(width > 0, jnp.clip(1.0 - jnp.maximum(lacking, 0.0) / jnp.where(width > 0, width, 1.0), 0.0, 1.0),
-                     (lacking <= 0).astype(lacking.dtype))
-    n_joints = model.joint_key.shape[0]
-    joint_slot = jnp.where(cemented, joint, n_joints)  # out of range: dropped by segment ops
-    joint_integrity = state.joint_integrity * jnp.minimum(jax.ops.segment_min(keep, joint_slot, n_joints), 1.0)
-    tension = jax.ops.segment_sum(jnp.maximum(-con.force[:, 0], 0.0), joint_slot, n_joints)
 
     # 4. Integrate: Newmark velocity from d; geometry from d plus the impact shift.
     v_newmark = newmark_velocity(d_geo - shift, v_star, dt, proj)
@@ -742,76 +632,18 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     # smallest cut: they are internal forces, and a share of them alone would throw the
     # pinched ring (1e7 N on 0.27 kg).
     kick = both.force * jnp.concatenate([late, late])[:, None]
-    kick_vel = matvec(proj, groups.apply(m_inv, apply_jacobian_t(jac_two, rows, kick, n)))
+    kick_vel = matvec(proj, respond(m_inv, jac_two, rows, kick))
     rate, rate_kick = apply_jacobian(jac_two, rows, v_newmark)[:, 0], apply_jacobian(jac_two, rows, kick_vel)[:, 0]
     kicked = jnp.any(kick != 0.0, -1)
     cut_to = jnp.where(kicked & (rate_kick > 0), jnp.clip(-rate / jnp.where(rate_kick > 0, rate_kick, 1.0), 0.0, 1.0), 1.0)
     kick = kick * cluster_min(cut_to, kicked, rows.a, rows.b, model.fixed)[:, None]
-    new_vel = v_newmark + matvec(proj, groups.apply(m_inv, apply_jacobian_t(jac_two, rows, kick, n)))
-    strain = d_geo[:, 3:]
-    turn_ref, offset = mesh_rotation(base, volume, centroid, d_geo[:, 2])
-    moved = d_geo[:, :2]
-    if pinned:  # a pinned body turns exactly about its pin, which stays where it is
-        turn_ref, moved = pins.pin_turn(model, turn_ref), pins.centroid_step(model, centroid, d_geo)
-    displacement = state.displacement + moved + finite_rotation_shift(turn_ref, offset)
-    if pinned:  # the pins at rest at the step's end (the velocity of a turned lever)
-        new_vel = pins.held_velocity(model, mass, proj, state.origin + displacement, new_vel)
-    new_state = State(
-        time=state.time + dt,
-        origin=state.origin,
-        displacement=displacement,
-        rotation=state.rotation + d_geo[:, 2],
-        velocity=new_vel,
-        stretch=updated_stretch(state.stretch, state.rotation, d_geo[:, 2], strain, turn_ref),
-        stress=rotated_stress(state.stress, d_geo[:, 2]) + jnp.einsum("nij,nj->ni", elastic_matrix(params.young, params.poisson,
-                                                                      base.plane_strain), strain),
-        contact_key=c.key,
-        contact_force=con.force.at[:, 0].add(p_cut[:, 0]),  # a contact's normal force: both rows'
-        joint_integrity=joint_integrity,
-    )
+    new_vel = v_newmark + matvec(proj, respond(m_inv, jac_two, rows, kick))
 
-    def to_global(p, nrm):
-        return p[:, :1] * nrm + p[:, 1:2] * clockwise(nrm)
-
-    mean = con.force * (dt / rest)[:, None]  # the mean force over the step (a windowed one acts over h)
-    mean_cut = p_cut * (dt / rest)[:, None]
-    earlier = p_pre * (t_win / dt)[:, None]  # the force before an impact, over the step
-    force = jnp.where(c.valid[:, None], to_global(imp.force / dt, normal_hit) + to_global(mean, normal_mid)
-                      + to_global(mean_cut, normal_cut) + to_global(earlier, normal_pre), 0.0)
-    bearing = imp.force[:, 0] / dt + mean[:, 0] + mean_cut[:, 0] + earlier[:, 0]
-    report = ContactReport(
-        valid=c.valid, a=c.a, b=c.b, point=point_mid, normal=normal_mid,
-        normal_force=jnp.sum(force * normal_mid, -1), shear_force=jnp.sum(force * clockwise(normal_mid), -1),
-        force=force, moment=jnp.where(c.valid, imp.force[:, 2] / dt + mean[:, 2] + earlier[:, 2], 0.0),
-        cemented=cemented, gap=gap0, bearing=jnp.where(c.valid, bearing, 0.0))
-    capacity = jnp.array(dataclasses.astuple(model.capacity), jnp.int32)
-    solves = (imp_first, before, imp)
-    info = StepInfo(
-        iterations=sum(x.iterations for x in solves) + jnp.sum(passes.iterations, dtype=imp.iterations.dtype),
-        residual=jnp.max(jnp.stack([x.residual for x in solves] + [jnp.max(passes.residual)])),
-        converged=jnp.all(jnp.stack([x.converged for x in solves] + [jnp.all(passes.converged)])),
-        needed=needed,
-        overflow=jnp.any(needed > capacity),
-        n_contacts=jnp.sum(c.valid).astype(jnp.int32),
-        max_penetration=jnp.maximum(0.0, -jnp.min(jnp.where(c.valid, gap0, 0.0))),
-        joint_tension=tension,
-        joint_broken=(joint_integrity <= 0) & (model.joint_key != NO_JOINT),
-        connector_force=connector_forces(base, params, new_state),
-        contacts=report,
-    )
-    return new_state, info
-
-
-def rollout(model: Model, state: State, params: Params, steps: int, *, checkpoint: bool = True):
-    """Scan ``step`` ``steps`` times. Returns (final state, (states, infos)) where
-    ``states`` stacks the state after each step.
-
-    Differentiable in ``params`` and ``state`` (forward and reverse mode). With
-    ``checkpoint`` each step is recomputed in the reverse pass (``jax.checkpoint``), so
-    reverse-mode memory grows with the number of steps only, not with the solver's work.
-    """
-    def body(s, _):
-        s2, info = step(model, s, params)
-        return s2, (s2, info)
-
-    return jax.lax.scan(jax.checkpoint(body) if checkpoint else body, state, None, length=steps)
+    gap_end = apply_w(op_k, both.force)[:n_rows, 0] + b_con[:, 0]
+    rest_mean = (dt / rest)[:, None]  # a windowed force acts over h: its mean over the step
+    parts = ((imp.force / dt, normal_hit), (con.force * rest_mean, normal_mid), (p_cut * rest_mean, normal_cut),
+             (p_pre * (t_win / dt)[:, None], normal_pre))  # the force before an impact, over the step
+    return Resolution(displacement=d_geo, velocity=new_vel,
+                      memory=con.force.at[:, 0].add(p_cut[:, 0]),  # a contact's normal force: both rows'
+                      force=con.force, gap_end=gap_end, w_nn=diag_k[:n_rows, 0], force_scale=force_scale,
+                      point=point_mid, normal=normal_mid, parts=parts, solutions=(imp_first, before, imp, passes))

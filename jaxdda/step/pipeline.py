@@ -1,0 +1,46 @@
+"""One PB-DDA time step as a pipeline of stages (paper Section 4), and its rollout.
+
+    assemble -> contact frame -> impacts and contact VI -> rupture -> update -> report
+"""
+from __future__ import annotations
+
+import jax
+
+from jaxdda.connectors import connector_forces
+from jaxdda.step.frame import contact_frame
+from jaxdda.step.operators import assemble
+from jaxdda.step.report import contact_report, step_info
+from jaxdda.step.resolve import resolve_contacts
+from jaxdda.step.rupture import rupture
+from jaxdda.step.update import update
+from jaxdda.types import Model, Params, State, StepInfo
+
+
+def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
+    """Advance one step of length params.dt. Pure: jit, vmap and scan apply."""
+    base = model
+    model, ops = assemble(base, state, params)
+    frame = contact_frame(model, state, params)
+    res = resolve_contacts(model, state, params, ops, frame)
+    integrity, tension = rupture(model, state, params, frame.cemented, frame.joint, res.force, res.gap_end, res.w_nn,
+                                 res.force_scale)
+    new_state = update(base, model, state, params, ops, res.displacement, res.velocity, frame.contacts.key,
+                       res.memory, integrity)
+    report = contact_report(frame, res.point, res.normal, res.parts)
+    info = step_info(model, frame, res.solutions, integrity, tension, connector_forces(base, params, new_state), report)
+    return new_state, info
+
+
+def rollout(model: Model, state: State, params: Params, steps: int, *, checkpoint: bool = True):
+    """Scan ``step`` ``steps`` times. Returns (final state, (states, infos)) where
+    ``states`` stacks the state after each step.
+
+    Differentiable in ``params`` and ``state`` (forward and reverse mode). With
+    ``checkpoint`` each step is recomputed in the reverse pass (``jax.checkpoint``), so
+    reverse-mode memory grows with the number of steps only, not with the solver's work.
+    """
+    def body(s, _):
+        s2, info = step(model, s, params)
+        return s2, (s2, info)
+
+    return jax.lax.scan(jax.checkpoint(body) if checkpoint else body, state, None, length=steps)

@@ -1,0 +1,181 @@
+"""The step's stages on their own (jaxdda/step/), on two- and three-body scenes, against
+closed forms: the operators of a rigid body, K^-1 J^T p against dense matrices, the
+contact frame of a disk over a floor, cement rupture, the end state of a free body."""
+import dataclasses
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxdda
+from jaxdda.solver.fista_newton import Solution
+from jaxdda.step import frame as frame_stage
+from jaxdda.step.operators import apply_w, assemble, flexibility, respond
+from jaxdda.step.report import contact_report, step_info
+from jaxdda.step.rupture import rupture
+from jaxdda.step.update import update
+
+DT, RHO, R = 0.01, 2.0, 0.5
+
+
+def _disks_on_floor(gap=0.004):
+    """Two disks above a fixed floor (top face y = 0), the first ``gap`` above it, the
+    second 0.002 m right of the first (both within the step's detection reach)."""
+    sb = jaxdda.SceneBuilder(dt=DT, gravity=(0.0, -10.0))
+    sb.add_polygon(vertices=[(-5.0, -1.0), (5.0, -1.0), (5.0, 0.0), (-5.0, 0.0)], density=1.0, fixed=True)
+    sb.add_disk(center=(0.0, R + gap), radius=R, density=RHO, velocity=(0.3, -1.0), angular_velocity=2.0)
+    sb.add_disk(center=(2 * R + 0.002, R + gap), radius=R, density=RHO)
+    return sb.build()
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return _disks_on_floor()
+
+
+@pytest.fixture(scope="module")
+def staged(scene):
+    def stages(model, state, params):
+        model, ops = assemble(model, state, params)
+        return model, ops, frame_stage.contact_frame(model, state, params)
+
+    return jax.jit(stages)(scene.model, scene.state, scene.params)
+
+
+def test_operators_of_a_rigid_disk(scene, staged):
+    _, ops, _ = staged
+    m = RHO * math.pi * R ** 2
+    i = 0.5 * m * R ** 2
+    unit = jnp.zeros((3, 6)).at[1, 0].set(1.0).at[1, 2].set(1.0)
+    # K_eff^-1 of a rigid body is (2 M / dt^2)^-1 on its 3 dofs, M_imp^-1 = M^-1; a fixed body none.
+    k_y = np.asarray(jaxdda.groups.apply(ops.k_inv, unit))[1]
+    np.testing.assert_allclose(k_y[[0, 2]], [DT ** 2 / (2 * m), DT ** 2 / (2 * i)], rtol=1e-12)
+    np.testing.assert_allclose(np.asarray(jaxdda.groups.apply(ops.m_inv, unit))[1, [0, 2]], [1 / m, 1 / i], rtol=1e-12)
+    assert np.all(np.asarray(jaxdda.groups.apply(ops.k_inv, unit))[0] == 0.0)
+    np.testing.assert_allclose(np.asarray(ops.load)[1, :2], [0.0, -10.0 * m], rtol=1e-12)
+    np.testing.assert_allclose(float(ops.momentum), max(m * 1.0 + 10.0 * m * DT, m * 0.3, i * 2.0), rtol=1e-12)
+
+
+def test_respond_and_w_agree_with_dense_matrices(staged):
+    _, ops, frame = staged
+    c, jac = frame.contacts, frame.jac
+    rng = np.random.default_rng(0)
+    p = jnp.where(c.valid[:, None], jnp.asarray(rng.normal(size=frame.p0.shape)), 0.0)
+    q = jnp.where(c.valid[:, None], jnp.asarray(rng.normal(size=frame.p0.shape)), 0.0)
+    # dense: J (C*3, N*6) and K_eff^-1 (N*6, N*6), block-diagonal for independent bodies
+    n = ops.vel.shape[0]
+    dense_j = np.zeros((c.valid.shape[0] * 3, n * 6))
+    for k in np.flatnonzero(np.asarray(c.valid)):
+        for side, body in ((0, int(c.a[k])), (1, int(c.b[k]))):
+            dense_j[3 * k:3 * k + 3, 6 * body:6 * body + 6] += np.asarray(jac[k, side])
+    dense_k = np.zeros((n * 6, n * 6))
+    for body in range(n):
+        dense_k[6 * body:6 * body + 6, 6 * body:6 * body + 6] = np.asarray(ops.k_inv.single[body])
+    expect = (dense_k @ dense_j.T @ np.asarray(p).ravel()).reshape(n, 6)
+    np.testing.assert_allclose(np.asarray(respond(ops.k_inv, jac, c, p)), expect, rtol=1e-12, atol=1e-18)
+    operand, diag = flexibility(jac, c, ops.k_inv)
+    w = dense_j @ dense_k @ dense_j.T
+    rows = np.repeat(np.asarray(c.valid), 3)  # padding rows are never read
+    np.testing.assert_allclose(np.asarray(apply_w(operand, p)).ravel()[rows], (w @ np.asarray(p).ravel())[rows],
+                               rtol=1e-12, atol=1e-18)
+    np.testing.assert_allclose(np.asarray(diag).ravel()[rows], np.diag(w)[rows], rtol=1e-12, atol=1e-18)
+    # W is symmetric: <q, W p> = <p, W q>
+    np.testing.assert_allclose(float(jnp.sum(q * apply_w(operand, p))), float(jnp.sum(p * apply_w(operand, q))),
+                               rtol=1e-12)
+
+
+def test_contact_frame_of_disks_over_a_floor(scene, staged):
+    _, _, frame = staged
+    c = frame.contacts
+    valid = np.flatnonzero(np.asarray(c.valid))
+    pairs = {(int(c.a[k]), int(c.b[k])): k for k in valid}
+    floor_row = next(k for (a, b), k in pairs.items() if {a, b} == {0, 1})
+    disks_row = next(k for (a, b), k in pairs.items() if {a, b} == {1, 2})
+    np.testing.assert_allclose(float(frame.gap0[floor_row]), 0.004, atol=1e-14)
+    np.testing.assert_allclose(abs(float(frame.normal[floor_row, 1])), 1.0, atol=1e-14)
+    np.testing.assert_allclose(float(frame.gap0[disks_row]), 0.002, atol=1e-14)
+    np.testing.assert_allclose(abs(float(frame.normal[disks_row, 0])), 1.0, atol=1e-14)
+    assert not np.asarray(frame.cemented).any()
+    assert np.all(np.asarray(frame.p0) == 0.0)  # a first step remembers no force
+
+
+def test_gap_change_is_exact_for_a_translation_and_a_turn(scene, staged):
+    model, _, frame = staged
+    d = jnp.zeros((3, 6)).at[1, 1].set(-0.07).at[1, 2].set(1.3)  # disk 1 down 0.07 m, turned (a disk: no change)
+    change = frame_stage.gap_change_by(model, scene.state, frame.contacts, d)
+    c = frame.contacts
+    for k in np.flatnonzero(np.asarray(c.valid)):
+        pair = {int(c.a[k]), int(c.b[k])}
+        if pair == {0, 1}:
+            np.testing.assert_allclose(float(change[k]), -0.07, atol=1e-14)
+        if pair == {1, 2}:  # centres 1.002 apart across x, now 0.07 apart in y
+            np.testing.assert_allclose(float(change[k]), math.hypot(1.002, 0.07) - 1.002, atol=1e-14)
+
+
+def test_warm_start_takes_the_force_of_the_same_feature_pair():
+    key = jnp.asarray([7, 3, -1])
+    force = jnp.asarray([[1.0, 2.0, 3.0], [4.0, 5.0, 6.0], [0.0, 0.0, 0.0]])
+    got = frame_stage.warm_start(key, force, jnp.asarray([3, 9, 7]))
+    np.testing.assert_array_equal(np.asarray(got), [[4.0, 5.0, 6.0], [0.0, 0.0, 0.0], [1.0, 2.0, 3.0]])
+
+
+def test_rupture_breaks_a_joint_that_still_opens_and_keeps_one_that_holds():
+    scene = jaxdda.examples.get("paper-7.8")
+    model, state, params = scene.model, scene.state, scene.params
+    n_joints = model.joint_key.shape[0]
+    cemented = jnp.asarray([True, True, False])
+    joint = jnp.asarray([0, 1, 0])
+    force = jnp.asarray([[-500.0, 0.0, 0.0], [-400.0, 0.0, 0.0], [100.0, 0.0, 0.0]])
+    w_nn = jnp.full(3, 1e-6)
+    # joint 0 opens by 1e-6 m at its full share (lacking 1 N), joint 1 stays closed
+    integrity, tension = rupture(model, state, params, cemented, joint, force, jnp.asarray([1e-6, 0.0, 0.0]), w_nn,
+                                 jnp.asarray(1.0))
+    assert n_joints == 2
+    np.testing.assert_array_equal(np.asarray(integrity), [0.0, 1.0])
+    np.testing.assert_array_equal(np.asarray(tension), [500.0, 400.0])
+    # a smoothed rupture of width 4 N keeps 1 - 1 / 4 of it (less the round-off allowance,
+    # 10 tol times the largest force)
+    smooth = dataclasses.replace(params, rupture_width=jnp.asarray(4.0))
+    integrity, _ = rupture(model, state, smooth, cemented, joint, force, jnp.asarray([1e-6, 0.0, 0.0]), w_nn,
+                           jnp.asarray(0.0))
+    lacking = 1.0 - 10.0 * float(params.tol) * 500.0
+    np.testing.assert_allclose(np.asarray(integrity), [1.0 - lacking / 4.0, 1.0], rtol=1e-12)
+
+
+def test_update_turns_a_rigid_block_about_its_centroid_exactly():
+    sb = jaxdda.SceneBuilder(dt=DT)
+    sb.add_polygon(vertices=[(0.0, 0.0), (2.0, 0.0), (2.0, 1.0), (0.0, 1.0)], density=1.0)
+    scene = sb.build()
+    base, state, params = scene.model, scene.state, scene.params
+    model, ops = assemble(base, state, params)
+    d = jnp.zeros((1, 6)).at[0, :3].set(jnp.asarray([0.3, -0.2, 0.9]))
+    v = jnp.zeros((1, 6)).at[0, :3].set(jnp.asarray([1.0, 2.0, 3.0]))
+    new = update(base, model, state, params, ops, d, v, state.contact_key, state.contact_force,
+                 state.joint_integrity)
+    np.testing.assert_allclose(np.asarray(new.centroid[0]), np.asarray(state.centroid[0]) + [0.3, -0.2], atol=1e-14)
+    np.testing.assert_allclose(float(new.rotation[0]), 0.9, atol=1e-15)
+    np.testing.assert_allclose(np.asarray(new.stretch[0]), np.eye(2), atol=1e-14)  # rigid: no strain
+    np.testing.assert_allclose(float(new.time), float(state.time) + DT, rtol=1e-15)
+    np.testing.assert_array_equal(np.asarray(new.velocity), np.asarray(v))
+
+
+def test_report_sums_the_parts_in_the_global_frame(staged):
+    model, _, frame = staged
+    c = frame.contacts
+    p1 = jnp.zeros_like(frame.p0).at[:, 0].set(2.0).at[:, 1].set(1.0).at[:, 2].set(0.5)
+    p2 = jnp.zeros_like(frame.p0).at[:, 0].set(3.0)
+    up, right = jnp.zeros_like(frame.normal).at[:, 1].set(1.0), jnp.zeros_like(frame.normal).at[:, 0].set(1.0)
+    report = contact_report(frame, frame.point, up, ((p1, up), (p2, right)))
+    k = int(np.flatnonzero(np.asarray(c.valid))[0])
+    # p1: normal 2 up, shear 1 along up turned clockwise (+x); p2: normal 3 along +x
+    np.testing.assert_allclose(np.asarray(report.force[k]), [1.0 + 3.0, 2.0], atol=1e-15)
+    assert float(report.bearing[k]) == 5.0 and float(report.moment[k]) == 0.5
+    assert np.all(np.asarray(report.force)[~np.asarray(c.valid)] == 0.0)
+    sol = Solution(jnp.zeros(()), jnp.asarray(3, jnp.int32), jnp.asarray(1e-9), jnp.asarray(True))
+    stacked = Solution(jnp.zeros(2), jnp.asarray([4, 5], jnp.int32), jnp.asarray([1e-12, 1e-7]),
+                       jnp.asarray([True, False]))
+    info = step_info(model, frame, (sol, stacked), jnp.zeros(0), jnp.zeros(0), jnp.zeros((0, 4)), report)
+    assert int(info.iterations) == 12 and float(info.residual) == 1e-7 and not bool(info.converged)
+    assert int(info.n_contacts) == int(np.sum(np.asarray(c.valid)))
