@@ -96,19 +96,35 @@ def energy_scale(p1: jax.Array, kick: jax.Array, v_minus: jax.Array, w_p1: jax.A
     return jnp.where(gains & (c > 0), jnp.clip(root, 0.0, 1.0), 1.0)
 
 
-def impact(apply_w: Callable[[Any, jax.Array], jax.Array], operand: Any, w_diag: jax.Array, v_minus: jax.Array,
-           sets: ContactSets, e: jax.Array, struck: jax.Array, a: jax.Array, b: jax.Array, fixed: jax.Array,
-           warm: jax.Array, tol: jax.Array, max_iter: jax.Array, force_scale: jax.Array) -> Impulses:
-    """The impulses (C, 3) of the impact rows ``sets.enabled`` on the relative velocities
-    ``v_minus`` (C, 3); ``e`` (C,) the restitution of the rows ``struck`` (the others are
-    constraints of the cluster, v+_n >= 0); rows join bodies ``a``, ``b``."""
-    sol = fista_newton.solve(apply_w, operand, w_diag, v_minus, sets, warm, tol, max_iter, force_scale)
-    p1 = sol.force
+def cluster_min(x: jax.Array, joined: jax.Array, a: jax.Array, b: jax.Array, fixed: jax.Array) -> jax.Array:
+    """Per row: the least ``x`` over the rows of its cluster (``cluster_labels``); a row that
+    joins nothing keeps its own."""
+    n = fixed.shape[0]
+    label = cluster_labels(joined, a, b, fixed)
+    least = jax.ops.segment_min(jnp.where(label < n, x, jnp.inf), label, n + 1)
+    return jnp.where(label < n, least[label], x)
+
+
+def impact_law(apply_w: Callable[[Any, jax.Array], jax.Array], operand: Any, v_minus: jax.Array, sets: ContactSets,
+               e: jax.Array, struck: jax.Array, a: jax.Array, b: jax.Array, fixed: jax.Array,
+               p1: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """From the compression P1 (C, 3) of the impact rows ``sets.enabled`` on the relative
+    velocities ``v_minus``: the impulse P = P1 + s K, the restitution s K and s (C,).
+    ``e`` (C,) the restitution of the rows ``struck`` (the others are constraints of the
+    cluster, v+_n >= 0); rows join bodies ``a``, ``b``."""
     n = fixed.shape[0]
     label = cluster_labels(sets.enabled & (p1[:, 0] > 0), a, b, fixed)
     e_row = cluster_restitution(e, struck & sets.enabled, label, n)
     kick = restitution_kick(p1, sets, e_row)
     w_p1, w_kick = apply_w(operand, p1), apply_w(operand, kick)
     s = energy_scale(p1, kick, v_minus, w_p1, w_kick, label, n)
-    return Impulses(impulse=p1 + s[:, None] * kick, compression=p1, restitution=s[:, None] * kick, scale=s,
-                    solution=sol)
+    return p1 + s[:, None] * kick, s[:, None] * kick, s
+
+
+def impact(apply_w: Callable[[Any, jax.Array], jax.Array], operand: Any, w_diag: jax.Array, v_minus: jax.Array,
+           sets: ContactSets, e: jax.Array, struck: jax.Array, a: jax.Array, b: jax.Array, fixed: jax.Array,
+           warm: jax.Array, tol: jax.Array, max_iter: jax.Array, force_scale: jax.Array) -> Impulses:
+    """The compression's solve and ``impact_law``."""
+    sol = fista_newton.solve(apply_w, operand, w_diag, v_minus, sets, warm, tol, max_iter, force_scale)
+    impulse, restitution, s = impact_law(apply_w, operand, v_minus, sets, e, struck, a, b, fixed, sol.force)
+    return Impulses(impulse=impulse, compression=sol.force, restitution=restitution, scale=s, solution=sol)
