@@ -1,11 +1,14 @@
 """Stages "predict", "impacts" and "contact VI": the step's velocity jumps and its contact
 forces, two contact solves through one traced solver (docs/design.md, "The step").
 
-    predict:    the free motion; each open contact's impact time on it; isolated pairs
-    impacts:    one velocity-level VI (``impacts.impact``): isolated pairs at their t*,
-                everything else at the step's start (Moreau)
-    contact VI: the position-level VI of the step (paper eqs. 39-41) from v*, linearised once
-                at the predictor; an isolated pair's force acts from its t* on (window)
+    predict:    the free motion (with last step's forces that still act); each contact's
+                impact time on it; impact clusters; isolated pairs
+    impacts:    one velocity-level VI (``impacts.impact_law``): a cluster without sustained
+                forces at its first t* (exact for an isolated pair), one with them at the
+                step's start (Moreau)
+    contact VI: the position-level VI of the step (paper eqs. 39-41) from v*, linearised once,
+                at the predictor cut where it first overlaps; an isolated pair's force acts
+                from its t* on (window)
 """
 from __future__ import annotations
 
@@ -22,7 +25,7 @@ from jaxdda.solver import fista_newton
 from jaxdda.solver.sets import ContactSets, sticking
 from jaxdda.step import frame as frame_stage
 from jaxdda.step.frame import ContactFrame
-from jaxdda.step.impacts import cluster_min, impact_law
+from jaxdda.step.impacts import cluster_labels, cluster_min, impact_law
 from jaxdda.step.operators import Operators, apply_w, flexibility, is_pinned, respond
 from jaxdda.types import Model, Params, State
 
@@ -51,7 +54,8 @@ class Prediction(NamedTuple):
     isolated: jax.Array  # (C,) bool: a contact of an isolated pair (exact event)
     engaged: jax.Array  # (C,) bool: loaded, cemented, closed, or closing on the free path
     loaded: jax.Array  # (C,) bool: carried force last step, or cemented, and not opening
-    opening: jax.Array  # (C,) bool: separating at the start and open on the free path
+    p_prior: jax.Array  # (C, 3) last step's forces that still act (not on opening contacts)
+    push0: jax.Array  # (N, 6) their displacement over the step, K^-1 J^T p_prior
 
 
 def _path(ops, c, t, side, accel):
@@ -72,33 +76,47 @@ def _loose(model: Model) -> jax.Array:
 
 def predict(model: Model, state: State, params: Params, ops: Operators, frame: ContactFrame,
             d_free: jax.Array) -> Prediction:
-    """Impact times on the free path (exact gap, ``exact_impact_time``) and the isolated
-    pairs: two bodies (rigid and loose, or the elements of one mesh; or one of them fixed)
-    whose every loaded, closed or closing contact joins them to each other, none loaded.
-    An isolated pair's contacts are taken at its first impact t*; all others at 0."""
+    """Impact times on the predicted path (exact gap, ``exact_impact_time``; the loads and
+    last step's forces that still act) and the impact clusters (bodies joined by their
+    loaded, closed or closing contacts): a cluster's contacts are taken at its first
+    impact t* (0 if none strikes: Moreau's impact of its closed contacts). The isolated
+    pairs, two bodies (rigid and loose, or the elements of one mesh; or one of them fixed)
+    whose every such contact joins them to each other, none loaded, are exact events."""
     n, dt = model.n_bodies, params.dt
     c, gap0, jac = frame.contacts, frame.gap0, frame.jac
-    accel = 2.0 * (d_free - ops.vel * dt) / dt ** 2
-    v_rel, a_rel = apply_jacobian(jac, c, ops.vel), apply_jacobian(jac, c, accel)
+    v_rel = apply_jacobian(jac, c, ops.vel)
+    # Signorini's law at velocity level: a contact that separates at the start (v_n dt > d0)
+    # and stays open on the free path carries nothing from t = 0 on, whatever it carried.
+    gap_free = gap0 + frame_stage.gap_change_by(model, state, c, d_free)
+    opening = c.valid & (v_rel[:, 0] * dt > params.margin) & (gap_free > params.margin) & ~frame.cemented
+    p_prior = jnp.where(opening[:, None], 0.0, frame.p0)
+    push0 = respond(ops.k_inv, jac, c, p_prior)  # their displacement over the step
+    accel = 2.0 * (d_free + push0 - ops.vel * dt) / dt ** 2
+    a_rel = apply_jacobian(jac, c, accel)
 
     def gap_on_path(t):
         return gap0 + gap_change_at(c, state.centroid, state.rotation, _path(ops, c, t, 0, accel)[0],
                                     _path(ops, c, t, 1, accel)[0])
 
     t_own, hits = exact_impact_time(gap0, v_rel[:, 0], a_rel[:, 0], dt, frame.touch, gap_on_path)
-    # Signorini's law at velocity level: a contact that separates at the start (v_n dt > d0)
-    # and stays open on the free path carries nothing from t = 0 on, whatever it carried.
-    gap_free = gap0 + frame_stage.gap_change_by(model, state, c, d_free)
-    opening = (v_rel[:, 0] * dt > params.margin) & (gap_free > params.margin) & ~frame.cemented
     live = c.valid & ~opening
     loaded = live & ((frame.p0[:, 0] > 0) | frame.cemented)
     engaged = live & (loaded | hits | (gap0 <= params.margin))
+    # A cluster's impact: the first contact that closes approaching (read on the exact path:
+    # a touching contact that does not approach strikes nothing).
+    rate = jax.jvp(gap_on_path, (t_own,), (jnp.ones_like(t_own),))[1]
+    striking = engaged & hits & ~loaded & (rate < -frame.touch / dt)
+    label = cluster_labels(engaged, c.a, c.b, model.fixed)
+    first = jax.ops.segment_min(jnp.where(striking, t_own, jnp.inf), label, n + 1)[label]
+    # A cluster that carries a sustained force is struck at the step's start (Moreau): its
+    # velocities at a later t* are not known without the forces before it.
+    carrying = jax.ops.segment_max(loaded.astype(jnp.int32), label, n + 1)[label] > 0
+    t_row = jnp.where(engaged & jnp.isfinite(first) & ~carrying, first, 0.0)
     # units: a mesh's elements are one body, every other body its own
     units = 2 * n
     unit = jnp.where(model.mesh >= 0, n + model.mesh, jnp.arange(n))
     ua, ub = unit[c.a], unit[c.b]
     pair = jnp.minimum(ua, ub) * units + jnp.maximum(ua, ub)
-    big = units * units
 
     def least(x):
         return jnp.minimum(jax.ops.segment_min(x, ua, units), jax.ops.segment_min(x, ub, units))
@@ -106,18 +124,14 @@ def predict(model: Model, state: State, params: Params, ops: Operators, frame: C
     def most(x):
         return jnp.maximum(jax.ops.segment_max(x, ua, units), jax.ops.segment_max(x, ub, units))
 
-    lo, hi = least(jnp.where(engaged, pair, big)), most(jnp.where(engaged, pair, -1))
+    lo, hi = least(jnp.where(engaged, pair, units * units)), most(jnp.where(engaged, pair, -1))
     held = most((engaged & loaded).astype(jnp.int32)) > 0
     fixed_u = jax.ops.segment_max(model.fixed.astype(jnp.int32), unit, units) > 0
-    in_mesh = jnp.arange(units) >= n
-    mobile = (jax.ops.segment_min(_loose(model).astype(jnp.int32), unit, units) > 0) | in_mesh
+    mobile = (jax.ops.segment_min(_loose(model).astype(jnp.int32), unit, units) > 0) | (jnp.arange(units) >= n)
     alone = fixed_u | ((lo == hi) & ~held & mobile)
     isolated = engaged & ~loaded & alone[ua] & alone[ub] & ~(fixed_u[ua] & fixed_u[ub])
-    first = jnp.where(fixed_u, jnp.inf, least(jnp.where(isolated & hits, t_own, jnp.inf)))
-    t_row = jnp.minimum(first[ua], first[ub])
-    t_row = jnp.where(isolated & jnp.isfinite(t_row), t_row, 0.0)
     return Prediction(accel=accel, t_row=t_row, isolated=isolated, engaged=engaged, loaded=loaded,
-                      opening=opening)
+                      p_prior=p_prior, push0=push0)
 
 
 class ImpactRows(NamedTuple):
@@ -131,11 +145,11 @@ class ImpactRows(NamedTuple):
 
 
 def impact_rows(model, state, params, ops, frame, pred: Prediction) -> ImpactRows:
-    """Each engaged contact at its instant (frame, velocity: ``gap_frame_at``). Struck (with
-    restitution) where it approaches, carried no force (a loaded or cemented contact is
-    sustained: it does not bounce) and, in an isolated pair, is closed at t*; the others
-    are constraints, v+_n >= 0 (a later corner of the pair is held from approaching at t*,
-    which keeps it out of the floor to first order)."""
+    """Each engaged contact at its cluster's instant (frame, velocity: ``gap_frame_at``).
+    Struck (with restitution) where it approaches, carried no force (a loaded or cemented
+    contact is sustained: it does not bounce) and is closed then; the others are
+    constraints, v+_n >= 0 (a later impact of the cluster, such as a block's second corner,
+    is held from approaching at t*: first order)."""
     c = frame.contacts
     (move_a, vel_a), (move_b, vel_b) = (_path(ops, c, pred.t_row, side, pred.accel) for side in (0, 1))
     pose_a = (state.centroid[c.a] + move_a[0], state.rotation[c.a] + move_a[1])
@@ -144,7 +158,7 @@ def impact_rows(model, state, params, ops, frame, pred: Prediction) -> ImpactRow
     jac_hit = jacobians_at(c, normal_hit, point_hit, gap_hit, pose_a[0], pose_b[0])
     v_hit = jnp.einsum("cij,cj->ci", jac_hit[:, 0], vel_a) + jnp.einsum("cij,cj->ci", jac_hit[:, 1], vel_b)
     taking = pred.engaged
-    struck = taking & ~pred.loaded & (v_hit[:, 0] < 0) & (~pred.isolated | (gap_hit <= params.margin))
+    struck = taking & ~pred.loaded & (v_hit[:, 0] < 0) & ((gap_hit <= params.margin) | (pred.t_row == 0))
     zero = jnp.zeros_like(frame.gap0)
     sets = frame.sets._replace(enabled=taking, cohesion=zero, tension=zero,
                                opposes=jnp.zeros(zero.shape + (2,), zero.dtype))
@@ -202,6 +216,20 @@ def window(model: Model, params: Params, ops: Operators, c, pred: Prediction, mo
                   v_clock=v_star + pred.accel * t_body[:, None])
 
 
+def linearisation_point(model: Model, params: Params, c, gap0: jax.Array, d_pred: jax.Array,
+                        change: jax.Array) -> jax.Array:
+    """Per body, the predicted motion d_pred (N, 6) scaled to where it first overlaps one
+    of its contacts by more than d0 (the exact gap, linear in between): 1 where it
+    overlaps none."""
+    n = model.n_bodies
+    g_pred = gap0 + change
+    start = jnp.maximum(gap0, 0.0)
+    over = c.valid & (g_pred < -params.margin)
+    lam = jnp.where(over, start / jnp.where(over, start - g_pred, 1.0), 1.0)
+    body = jnp.minimum(jax.ops.segment_min(lam, c.a, n), jax.ops.segment_min(lam, c.b, n))
+    return d_pred * jnp.clip(body, 0.0, 1.0)[:, None]
+
+
 def resolve_contacts(model: Model, state: State, params: Params, ops: Operators, frame: ContactFrame) -> Resolution:
     """The step's impacts and contact forces (``model`` in the bodies' current shape)."""
     n, dt = model.n_bodies, params.dt
@@ -213,8 +241,7 @@ def resolve_contacts(model: Model, state: State, params: Params, ops: Operators,
     rows = impact_rows(model, state, params, ops, frame, pred)
     op_m, diag_m = flexibility(rows.jac, c, ops.m_inv)
     force_scale = ops.momentum / dt
-    p_prior = jnp.where(pred.opening[:, None], 0.0, p0)  # last step's forces that still act
-    push0 = respond(k_inv, frame.jac, c, p_prior)  # their displacement over this step
+    p_prior, push0 = pred.p_prior, pred.push0
 
     def gap_change_by(d):
         return frame_stage.gap_change_by(model, state, c, d)
@@ -232,8 +259,9 @@ def resolve_contacts(model: Model, state: State, params: Params, ops: Operators,
                                    model.fixed, p1)
         v_star = vel + respond(ops.m_inv, rows.jac, c, impulse)
         moved = rows.sets.enabled & (impulse[:, 0] > 0)
-        clock = jnp.maximum(jax.ops.segment_max(jnp.where(moved & pred.isolated, pred.t_row, 0.0), c.a, n),
-                            jax.ops.segment_max(jnp.where(moved & pred.isolated, pred.t_row, 0.0), c.b, n))
+        clock = jnp.maximum(jax.ops.segment_max(jnp.where(moved, pred.t_row, 0.0), c.a, n),
+                            jax.ops.segment_max(jnp.where(moved, pred.t_row, 0.0), c.b, n))
+        # Each body moves with its old velocity until its cluster's impact, its new one after.
         clock = mesh_clock(model.mesh, jnp.where(model.fixed, 0.0, jnp.maximum(clock, 0.0)))
         shift = -(v_star - vel) * clock[:, None]
         win = window(model, params, ops, c, pred, moved, v_star)
@@ -253,9 +281,14 @@ def resolve_contacts(model: Model, state: State, params: Params, ops: Operators,
         # all others, u_clock = 0) to the predictor: the frame half-way, the normal row the
         # discrete gradient of the gap over that motion (it then does no work on a closed
         # contact: docs/design.md, Energy).
-        change = gap_change_by(d_pred)
-        jac, nrm, pt = mid_frame(d_pred, win.u_clock)
-        jac = discrete_gradient(jac, c, d_pred - win.u_clock, change - gap_change_by(win.u_clock), model.bound_radius)
+        # Linearised at the predictor, or short of it: a body's predicted motion is cut
+        # where it first overlaps a contact by more than d0 (the gap linearised there errs
+        # by the second order of the motion from it, which past that contact is motion the
+        # solve takes back: a block spun into a corner).
+        d_lin = linearisation_point(model, params, c, gap0, d_pred, gap_change_by(d_pred))
+        change = gap_change_by(d_lin)
+        jac, nrm, pt = mid_frame(d_lin, win.u_clock)
+        jac = discrete_gradient(jac, c, d_lin - win.u_clock, change - gap_change_by(win.u_clock), model.bound_radius)
         w = win.windowed
         held = sticking(p0, sets) & (p0[:, 1] != 0.0) & ~((impulse[:, 0] > 0) & ~sticking(impulse, rows.sets))
         held = held & _at_partner(held, sets.partner)  # an interface as one
@@ -264,7 +297,7 @@ def resolve_contacts(model: Model, state: State, params: Params, ops: Operators,
         end_velocity, opposes = _row_kinds(frame, model, end_velocity, held)
         since = jnp.where(w[:, None], apply_jacobian(jac, c, win.u_clock), apply_jacobian(jac, c, shift))
         b = apply_jacobian(jac, c, d_base) - since - end_velocity
-        b = b.at[:, 0].set(gap0 + change - apply_jacobian(jac, c, d_pred - d_base)[:, 0])
+        b = b.at[:, 0].set(gap0 + change - apply_jacobian(jac, c, d_lin - d_base)[:, 0])
         con_sets = sets._replace(opposes=opposes, cohesion=sets.cohesion * (win.rest / dt) ** 2)
         op, diag = flexibility(jac, c, flex)
         problem = (op, diag, b, con_sets, p0, force_scale)
