@@ -4,11 +4,11 @@ Per body, K_eff = K + 2 M / dt^2 and f_eff = f + 2 M v / dt, so the displacement
 step is d = K_eff^-1 (f_eff + C p) (eqs. 20-24) and the end velocity is v+ = 2 d / dt - v.
 
 Newmark alone turns an impact whose gap g0 > 0 closes inside the step into
-v+ = 2 g0 / dt - v- (not -v-). We therefore resolve impacts first, at velocity level
-(restitution at the moment of impact t*: Poisson's law, step.resolve._poisson_impact), and place
-the impulse at t*: the body moves with its old velocity until t* and its new one after, which is the
-exact event-driven path for isolated impacts (see docs/design.md). For e = 1 and one
-frictionless contact this position is the paper's "double contact displacement" (eq. 46).
+v+ = 2 g0 / dt - v- (not -v-). The step therefore resolves impacts first, at velocity level
+(step.impacts), at the impact time t* found here, and places the impulse at t*: the body moves
+with its old velocity until t* and its new one after, the exact event-driven path for an
+isolated impact (docs/design.md, "The scheme"). For e = 1 and one frictionless contact this
+position is the paper's "double contact displacement" (eq. 46).
 """
 from __future__ import annotations
 
@@ -82,81 +82,6 @@ def exact_impact_time(gap: jax.Array, vn: jax.Array, an: jax.Array, dt: jax.Arra
         return impact_time(gap, vn, an + 2.0 * (gap_at(at) - linear) / (at * at), dt, touch)
 
     return jax.lax.fori_loop(0, IMPACT_PASSES, refit, impact_time(gap, vn, an, dt, touch))
-
-
-def common_impact_time(t_hit: jax.Array, struck: jax.Array, a: jax.Array, b: jax.Array, n_bodies: int,
-                       dt: jax.Array) -> jax.Array:
-    """Impact times with those within SIMULTANEITY * dt after the first impact of either
-    body moved onto it (one impact, e.g. two corners meeting a wall), others unchanged."""
-    t = jnp.where(struck, t_hit, jnp.inf)
-    first = jnp.minimum(jax.ops.segment_min(t, a, n_bodies), jax.ops.segment_min(t, b, n_bodies))
-    near = jnp.minimum(first[a], first[b])
-    return jnp.where(struck & (t_hit - near <= SIMULTANEITY * dt), near, t_hit)
-
-
-def _impact_source(t_hit: jax.Array, struck: jax.Array, carrying: jax.Array, a: jax.Array, b: jax.Array,
-                   fixed: jax.Array) -> jax.Array:
-    """Per body (N,): the struck contact whose impact reaches it first (-1: none).
-
-    A body struck itself takes its first impact. One that is not struck takes the first
-    impact that reaches it through ``carrying`` contacts between free bodies (a resting
-    stack under a falling body, a free chain pushed at one end): the struck bodies' times
-    spread along them, the earliest winning; fixed bodies pass nothing on. Discrete (which
-    impact reaches which body): no derivative flows through it.
-    """
-    n = fixed.shape[0]
-    idx = jnp.arange(t_hit.shape[0])
-    t = jnp.where(struck, jax.lax.stop_gradient(t_hit), jnp.inf)
-    first = jnp.minimum(jax.ops.segment_min(t, a, n), jax.ops.segment_min(t, b, n))
-
-    def source(offer, body):  # per body: the contact whose time it takes (-1: none)
-        return jax.ops.segment_max(jnp.where(offer & (t == first[body]), idx, -1), body, n)
-
-    src = jnp.maximum(source(struck, a), source(struck, b))
-    is_struck = src >= 0
-    live = carrying & ~fixed[a] & ~fixed[b]
-
-    def spread(carry):
-        clock, src, _ = carry
-        to_a, to_b = jnp.where(live, clock[b], jnp.inf), jnp.where(live, clock[a], jnp.inf)
-        best = jnp.minimum(jax.ops.segment_min(to_a, a, n), jax.ops.segment_min(to_b, b, n))
-        take = ~is_struck & (best < clock)
-        via_a = jax.ops.segment_max(jnp.where(live & (to_a == best[a]), src[b], -1), a, n)
-        via_b = jax.ops.segment_max(jnp.where(live & (to_b == best[b]), src[a], -1), b, n)
-        return (jnp.where(take, best, clock), jnp.where(take, jnp.maximum(via_a, via_b), src), jnp.any(take))
-
-    _, src, _ = jax.lax.while_loop(lambda c: c[2], spread, (jnp.where(is_struck, first, jnp.inf), src, True))
-    return src
-
-
-def strike_time(t_hit: jax.Array, striking: jax.Array, carrying: jax.Array, a: jax.Array, b: jax.Array,
-                fixed: jax.Array) -> jax.Array:
-    """Per contact (C,): the earliest impact time (``t_hit`` of ``striking`` contacts) that
-    reaches either of its free bodies, directly or through ``carrying`` contacts
-    (``_impact_source``); 0 where none does. A contact that strikes nothing itself (a
-    resting or touching one) takes part in the impacts at that instant, also where the
-    impact reaches it through other contacts (timed at the step's start, it gained energy
-    in fuzz seed 7168)."""
-    src = jnp.where(fixed, -1, _impact_source(t_hit, striking, carrying, a, b, fixed))
-    first = jnp.where(src >= 0, t_hit[jnp.maximum(src, 0)], jnp.inf)
-    at = jnp.minimum(first[a], first[b])
-    return jnp.where(jnp.isfinite(at), at, 0.0)
-
-
-def impact_clock(t_hit: jax.Array, struck: jax.Array, carrying: jax.Array, a: jax.Array, b: jax.Array,
-                 fixed: jax.Array) -> jax.Array:
-    """Per body (N,): the time in the step at which its velocity changes in the impact
-    stage, so that it moves with its old velocity until then and its new one after: the
-    time of the first impact that reaches it (``_impact_source``, through the ``carrying``
-    contacts), 0 for others.
-
-    Per body, not per contact: a stack under a falling disk takes the disk's impulse and
-    the floor's equal and opposite one at the same instant, so its net velocity change
-    (zero) is shifted by nothing. The spreading is discrete (which impact reaches which
-    body); the clock itself is the differentiable t_hit of that impact.
-    """
-    src = _impact_source(t_hit, struck, carrying, a, b, fixed)
-    return jnp.where(src >= 0, t_hit[jnp.maximum(src, 0)], 0.0)
 
 
 def mesh_clock(mesh: jax.Array, clock: jax.Array) -> jax.Array:
