@@ -91,8 +91,9 @@ def energy_scale(p1: jax.Array, kick: jax.Array, v_minus: jax.Array, w_p1: jax.A
     b = total(kick * (v_minus + w_p1))
     c = total(kick * w_kick)
     gains = a + b + 0.5 * c > 0
-    disc = jnp.maximum(b * b - 2.0 * a * c, 0.0)
-    root = (jnp.sqrt(disc) - b) / jnp.where(c > 0, c, 1.0)
+    disc = b * b - 2.0 * a * c
+    real = disc > 0  # (sqrt's derivative at 0 is infinite: it would poison reverse mode)
+    root = (jnp.where(real, jnp.sqrt(jnp.where(real, disc, 1.0)), 0.0) - b) / jnp.where(c > 0, c, 1.0)
     return jnp.where(gains & (c > 0), jnp.clip(root, 0.0, 1.0), 1.0)
 
 
