@@ -198,8 +198,8 @@ class ContactReport:
     moment: jax.Array  # (C,) rolling resistance moment on a from b (counter-clockwise +)
     cemented: jax.Array  # (C,) bool: an intact cemented joint (its normal force may be a tension)
     gap: jax.Array  # (C,) gap at the start of the step
-    # (C,) the normal forces of the contact's rows summed (mean over the step; a ring's hole
-    # holds its disk by two rows, see step/resolve.py), what presses the bodies together
+    # (C,) the contact's normal forces of the step's parts (impact and contact VI) summed,
+    # each in its own frame (mean over the step): what presses the bodies together
     bearing: jax.Array
 
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from jaxdda.solver.sets import ContactSets
-from jaxdda.step.impacts import impact
+from jaxdda.step.impacts import energy_scale, impact
 
 TOL = 1e-13
 
@@ -178,8 +178,6 @@ def test_the_energy_bound_holds_a_sticking_corner_to_its_energy():
 def test_energy_bound_has_a_finite_derivative_where_it_is_idle():
     # Rows with no compression and no kick (a = b = c = 0: the bound's discriminant is 0)
     # take s = 1; reverse mode through them must stay finite (sqrt'(0) is infinite).
-    from jaxdda.step.impacts import energy_scale
-
     def total(v):
         zero = jnp.zeros((2, 3))
         return jnp.sum(energy_scale(zero, zero, v, zero, zero, jnp.array([0, 0]), 1))

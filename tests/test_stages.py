@@ -1,6 +1,8 @@
 """The step's stages on their own (jaxdda/step/), on two- and three-body scenes, against
 closed forms: the operators of a rigid body, K^-1 J^T p against dense matrices, the
-contact frame of a disk over a floor, cement rupture, the end state of a free body."""
+contact frame of a disk over a floor, the prediction, impact rows, velocity jump, contact VI
+and end of a disk striking a floor inside the step, cement rupture, the end state of a free
+body."""
 import dataclasses
 import math
 
@@ -12,8 +14,12 @@ import pytest
 import jaxdda
 from jaxdda.solver.fista_newton import Solution
 from jaxdda.step import frame as frame_stage
+from jaxdda.step.contact_vi import linearisation_point
+from jaxdda.step.jump import impact_rows
 from jaxdda.step.operators import apply_w, assemble, flexibility, respond
+from jaxdda.step.predict import predict
 from jaxdda.step.report import contact_report, step_info
+from jaxdda.step.resolve import impacts_then_contacts, step_end
 from jaxdda.step.rupture import rupture
 from jaxdda.step.update import update
 
@@ -179,3 +185,77 @@ def test_report_sums_the_parts_in_the_global_frame(staged):
     info = step_info(model, frame, (sol, stacked), jnp.zeros(0), jnp.zeros(0), jnp.zeros((0, 4)), report)
     assert int(info.iterations) == 12 and float(info.residual) == 1e-7 and not bool(info.converged)
     assert int(info.n_contacts) == int(np.sum(np.asarray(c.valid)))
+
+
+# -- predict, impacts, contact VI and end: a disk striking a floor inside the step --------
+E, V0, H0 = 0.5, 1.0, 0.004  # restitution, speed down, start gap
+T_STAR = (-V0 + math.sqrt(V0 ** 2 + 2 * 10.0 * H0)) / 10.0  # H0 = V0 t + 5 t^2
+
+
+@pytest.fixture(scope="module")
+def striking():
+    sb = jaxdda.SceneBuilder(dt=DT, gravity=(0.0, -10.0))
+    sb.add_material("bouncy", restitution=E)
+    sb.add_polygon(vertices=[(-5.0, -1.0), (5.0, -1.0), (5.0, 0.0), (-5.0, 0.0)], density=1.0, fixed=True,
+                   material="bouncy")
+    sb.add_disk(center=(0.0, R + H0), radius=R, density=RHO, velocity=(0.0, -V0), material="bouncy")
+    scene = sb.build()
+
+    def stages(model, state, params):
+        model, ops = assemble(model, state, params)
+        frame = frame_stage.contact_frame(model, state, params)
+        pred = predict(model, state, params, ops, frame)
+        rows = impact_rows(model, state, params, ops, frame, pred)
+        solved = impacts_then_contacts(model, state, params, ops, frame, pred, rows)
+        return frame, pred, rows, solved, step_end(model, params, ops, frame, rows, solved)
+
+    out = jax.jit(stages)(scene.model, scene.state, scene.params)
+    row = int(np.flatnonzero(np.asarray(out[0].contacts.valid))[0])
+    assert int(np.sum(np.asarray(out[0].contacts.valid))) == 1
+    return scene, row, out
+
+
+def test_predict_times_the_impact_on_the_free_path(striking):
+    _, k, (_, pred, _, _, _) = striking
+    np.testing.assert_allclose(float(pred.t_row[k]), T_STAR, rtol=1e-10)
+    assert bool(pred.isolated[k]) and bool(pred.engaged[k]) and not bool(pred.loaded[k])
+    np.testing.assert_allclose(np.asarray(pred.accel)[1, :3], [0.0, -10.0, 0.0], atol=1e-12)
+
+
+def test_impact_rows_read_the_velocity_at_the_instant(striking):
+    _, k, (_, _, rows, _, _) = striking
+    np.testing.assert_allclose(float(rows.v_minus[k, 0]), -(V0 + 10.0 * T_STAR), rtol=1e-10)
+    assert bool(rows.struck[k])
+
+
+def test_velocity_jump_is_newtons_law_at_the_instant(striking):
+    _, k, (_, _, _, solved, _) = striking
+    jump = solved.jump
+    kick = (1.0 + E) * (V0 + 10.0 * T_STAR)  # v+ = -e v- at t*, carried back to the start
+    np.testing.assert_allclose(np.asarray(jump.v_star)[1, :3], [0.0, -V0 + kick, 0.0], rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(np.asarray(jump.shift)[1, :3], [0.0, -kick * T_STAR, 0.0], rtol=1e-10, atol=1e-15)
+    assert bool(jump.win.windowed[k])
+    np.testing.assert_allclose(float(jump.win.t_win[k]), T_STAR, rtol=1e-10)
+
+
+def test_step_end_is_the_exact_bounce_and_the_contact_opens(striking):
+    _, k, (_, _, _, _, res) = striking
+    up, h = E * (V0 + 10.0 * T_STAR), DT - T_STAR
+    np.testing.assert_allclose(np.asarray(res.displacement)[1, :3], [0.0, -H0 + up * h - 5.0 * h ** 2, 0.0],
+                               rtol=1e-10, atol=1e-15)
+    np.testing.assert_allclose(np.asarray(res.velocity)[1, :3], [0.0, up - 10.0 * h, 0.0], rtol=1e-10, atol=1e-12)
+    assert float(res.force[k, 0]) == 0.0 and float(res.gap_end[k]) > 0.0
+
+
+def test_linearisation_point_cuts_each_body_at_its_first_overlap(striking):
+    scene, k, (frame, _, _, _, _) = striking
+    c = frame.contacts
+    d_pred = jnp.zeros((2, 6)).at[1, 1].set(-5.0 * H0)
+    # the predictor overlaps the floor by 4 H0 (> d0): cut to where the gap closes
+    change = jnp.where(c.valid, -5.0 * H0, 0.0)
+    cut = linearisation_point(scene.model, scene.params, c, frame.gap0, d_pred, change)
+    np.testing.assert_allclose(np.asarray(cut)[1, 1], -float(frame.gap0[k]), rtol=1e-12)
+    np.testing.assert_allclose(float(frame.gap0[k]), H0, rtol=1e-12)
+    # one that does not overlap by more than d0 is kept
+    kept = linearisation_point(scene.model, scene.params, c, frame.gap0, d_pred, jnp.where(c.valid, -H0, 0.0))
+    np.testing.assert_array_equal(np.asarray(kept), np.asarray(d_pred))

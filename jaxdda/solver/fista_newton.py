@@ -33,6 +33,17 @@ class Solution(NamedTuple):
     converged: jax.Array  # () bool
 
 
+class Problem(NamedTuple):
+    """One contact solve's data: ``solve``'s arguments but the map and the tolerances."""
+
+    operand: Any  # W's data, for apply_w
+    w_diag: jax.Array  # (C, 3)
+    b: jax.Array  # (C, 3)
+    sets: ContactSets
+    warm: jax.Array  # (C, 3) the warm start
+    force_scale: jax.Array  # ()
+
+
 def solve(apply_w: Callable[[Any, jax.Array], jax.Array], operand: Any, w_diag: jax.Array, b: jax.Array,
           sets: ContactSets, p0: jax.Array, tol: jax.Array,
           max_iter: jax.Array, force_scale: jax.Array = 0.0) -> Solution:

@@ -87,13 +87,21 @@ def respond(flex: Flexibility, jac: jax.Array, c: Contacts, p: jax.Array) -> jax
     return groups.apply(flex, apply_jacobian_t(jac, c, p, flex.single.shape[0]))
 
 
-def apply_w(operand, p: jax.Array) -> jax.Array:
-    """W p = J K^-1 J^T p for operand (jac, contacts, K^-1): the contact flexibility (eq. 39)."""
+class WOperand(NamedTuple):
+    """W = J inv J^T's data (``apply_w``'s operand)."""
+
+    jac: jax.Array  # (C, 2, 3, 6) the rows
+    contacts: Contacts
+    inv: Flexibility  # K^-1 (forces over the step) or M_imp^-1 (impulses)
+
+
+def apply_w(operand: WOperand, p: jax.Array) -> jax.Array:
+    """W p = J K^-1 J^T p: the contact flexibility (eq. 39)."""
     jac, c, inv = operand
     return apply_jacobian(jac, c, respond(inv, jac, c, p))
 
 
-def flexibility(jac: jax.Array, c: Contacts, inv: Flexibility):
+def flexibility(jac: jax.Array, c: Contacts, inv: Flexibility) -> tuple[WOperand, jax.Array]:
     """The operand of ``apply_w`` for W = J inv J^T, and W's diagonal (C, 3) (with the
     coupling of a contact's two bodies where they share a dof group, eq. 112)."""
     diag = (jnp.einsum("cij,cjk,cik->ci", jac[:, 0], groups.diagonal(inv, c.a), jac[:, 0])
@@ -101,4 +109,4 @@ def flexibility(jac: jax.Array, c: Contacts, inv: Flexibility):
     cross = groups.coupling(inv, c.a, c.b)
     if cross is not None:
         diag = diag + 2.0 * jnp.einsum("cij,cjk,cik->ci", jac[:, 0], cross, jac[:, 1])
-    return (jac, c, inv), diag
+    return WOperand(jac, c, inv), diag

@@ -1,6 +1,7 @@
 """One PB-DDA time step as a pipeline of stages (paper Section 4), and its rollout.
 
-    assemble -> contact frame -> impacts and contact VI -> rupture -> update -> report
+    assemble -> detect (contact frame) -> predict -> impacts -> contact VI -> end -> rupture
+    -> update -> report
 """
 from __future__ import annotations
 
@@ -10,7 +11,9 @@ from jaxdda.connectors import connector_forces
 from jaxdda.step.frame import contact_frame
 from jaxdda.step.operators import assemble
 from jaxdda.step.report import contact_report, step_info
-from jaxdda.step.resolve import resolve_contacts
+from jaxdda.step.jump import impact_rows
+from jaxdda.step.predict import predict
+from jaxdda.step.resolve import impacts_then_contacts, step_end
 from jaxdda.step.rupture import rupture
 from jaxdda.step.update import update
 from jaxdda.types import Model, Params, State, StepInfo
@@ -21,7 +24,10 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     base = model
     model, ops = assemble(base, state, params)
     frame = contact_frame(model, state, params)
-    res = resolve_contacts(model, state, params, ops, frame)
+    pred = predict(model, state, params, ops, frame)
+    rows = impact_rows(model, state, params, ops, frame, pred)
+    solved = impacts_then_contacts(model, state, params, ops, frame, pred, rows)
+    res = step_end(model, params, ops, frame, rows, solved)
     integrity, tension = rupture(model, state, params, frame.cemented, frame.joint, res.force, res.gap_end, res.w_nn,
                                  res.force_scale)
     new_state = update(base, model, state, params, ops, res.displacement, res.velocity, frame.contacts.key,
