@@ -365,24 +365,27 @@ def _column_drop(e, dt, h):
 
 @pytest.mark.parametrize("e", [0.5, 0.0])
 def test_disk_dropped_on_a_resting_column_is_first_order(e):
-    # Three disks rest in a column on the floor; a fourth falls onto it from heights that
-    # put the impact at every phase of a step. The column carries force, so its impact is
-    # Moreau's, at the start of the step in which the top disk strikes (docs/design.md):
-    # the disk rebounds from where it was then, a gap g of at most |v| dt above the column,
-    # with the speed it had there, so its apex is e^2 h + (1 - e^2) g: first order, the
-    # bound halving with dt, and never above h (no energy appears). The column does not move.
-    for dt in (0.0137, 0.0137 / 2):
-        for h in np.linspace(1.5, 2.0, 6):
+    # Three disks rest in a column on the floor; a fourth falls onto it, striking at phases
+    # 0.1 .. 0.9 of a step. The column carries force, so the impulse is Moreau's, from the
+    # velocities at the step's start, and the velocities jump at the impact t* (the clock;
+    # docs/design.md): the disk strikes with the speed it had a travel s0 <= |v| dt before
+    # the column, short of the energy m g s0, and restitution makes none. So its apex lies
+    # in [e^2 h - |v| dt, e^2 h]: first order, the bound halving with dt. The column does
+    # not move, and no step gains energy.
+    for phase in (0.1, 0.5, 0.9):
+        for dt in (0.0137, 0.0137 / 2):
+            t_hit = (round(0.55 / dt) + phase) * dt
+            h = 0.5 * G * t_hit ** 2
             scene, run = _column_drop(e, dt, h)
             y = np.asarray(run.centroid)[..., 1]
             np.testing.assert_allclose(y[:, :3], [[0.5, 1.5, 2.5]] * len(y), atol=1e-9, rtol=0)
             height = y[:, 3] - 3.5
             assert height.min() > -1e-9
-            after = run.time > math.sqrt(2 * h / G) + dt
+            after = run.time > t_hit + dt
             k = np.argmax(np.where(after, height, -np.inf))
             v = run.velocity[k, 3, 1]
             excess = height[k] + v * v / (2 * G) - e * e * h
-            assert -1e-9 < excess <= (1 - e * e) * math.sqrt(2 * G * h) * dt
+            assert -G * t_hit * dt <= excess < 1e-9
             energy = _energy(scene, run)
             assert np.diff(energy).max() < 1e-9 * energy[0]
 
@@ -406,3 +409,26 @@ def test_impact_on_a_touching_chain_passes_through_it(e):
     else:
         assert abs(0.5 * (v * v).sum() - 2.0) < 1e-10
         assert np.all(np.diff(v) >= -1e-10)  # no body passes through the one ahead
+
+
+@pytest.mark.parametrize("phase", [0.1, 0.5, 0.9])
+def test_impact_between_bodies_resting_on_a_floor_is_timed_exactly(phase):
+    # B slides on a frictionless floor into A at rest beside it (e = 1, equal masses): both
+    # carry their weight, so the impulse is Moreau's, from the step's start; the support
+    # does not press into them, so the bodies move with their old velocities until the
+    # impact t* and with the new ones after (docs/design.md, "The clock"): B stops where it
+    # struck, A leaves from there, exactly, wherever t* falls in the step.
+    dt, v, r = 0.01, 1.0, 0.5
+    t_hit = (4 + phase) * dt
+    sb = jaxdda.SceneBuilder(dt=dt, gravity=(0.0, -G))
+    sb.add_disk(center=(0.0, r), radius=r, density=1.0, velocity=(v, 0.0))
+    sb.add_disk(center=(2 * r + v * t_hit, r), radius=r, density=1.0)
+    floor(sb)
+    run = jaxdda.simulate(sb.build(), 10)
+    t = np.asarray(run.time)
+    x = np.asarray(run.centroid)[:, :2, 0]
+    np.testing.assert_allclose(x[:, 0], v * np.minimum(t, t_hit), atol=1e-10, rtol=0)
+    np.testing.assert_allclose(x[:, 1], 2 * r + v * np.maximum(t, t_hit), atol=1e-10, rtol=0)
+    np.testing.assert_allclose(np.asarray(run.centroid)[:, :2, 1], r, atol=1e-10, rtol=0)
+    after = t > t_hit
+    np.testing.assert_allclose(np.asarray(run.velocity)[after, :2, 0], [[0.0, v]] * int(after.sum()), atol=1e-10)

@@ -17,7 +17,7 @@ from jaxdda.step import frame as frame_stage
 from jaxdda.step.contact_vi import linearisation_point
 from jaxdda.step.jump import impact_rows
 from jaxdda.step.operators import apply_w, assemble, flexibility, respond
-from jaxdda.step.predict import predict
+from jaxdda.step.predict import impact_instants, predict
 from jaxdda.step.report import contact_report, step_info
 from jaxdda.step.resolve import impacts_then_contacts, step_end
 from jaxdda.step.rupture import rupture
@@ -259,3 +259,18 @@ def test_linearisation_point_cuts_each_body_at_its_first_overlap(striking):
     # one that does not overlap by more than d0 is kept
     kept = linearisation_point(scene.model, scene.params, c, frame.gap0, d_pred, jnp.where(c.valid, -H0, 0.0))
     np.testing.assert_array_equal(np.asarray(kept), np.asarray(d_pred))
+
+
+@pytest.mark.parametrize("pressing", [False, True])
+def test_a_loaded_cluster_jumps_at_its_impact_unless_a_support_presses(pressing):
+    # A body 1 resting on a fixed floor 0 (a sustained contact) is struck by body 2 at t*:
+    # its impact rows are read at 0 (Moreau), its velocities jump at t*; at 0 where the
+    # sustained contact approaches at the start.
+    from types import SimpleNamespace
+    model = SimpleNamespace(n_bodies=3, fixed=jnp.array([True, False, False]))
+    c = SimpleNamespace(a=jnp.array([1, 2]), b=jnp.array([0, 1]))
+    t_row, t_jump = impact_instants(model, c, engaged=jnp.array([True, True]), loaded=jnp.array([True, False]),
+                                    pressing=jnp.array([pressing, False]), striking=jnp.array([False, True]),
+                                    t_own=jnp.array([jnp.inf, 0.004]))
+    np.testing.assert_array_equal(np.asarray(t_row), [0.0, 0.0])
+    np.testing.assert_array_equal(np.asarray(t_jump), [0.0, 0.0] if pressing else [0.004, 0.004])

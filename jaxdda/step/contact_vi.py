@@ -95,7 +95,8 @@ def row_kinds(frame: ContactFrame, model: Model, end_velocity: jax.Array, held: 
     along = along | _at_partner(along, sets.partner)  # an interface as one
     positional = jnp.stack([held, jnp.zeros_like(held)], -1) | along
     end_velocity = end_velocity.at[:, 1:].set(jnp.where(positional, 0.0, end_velocity[:, 1:]))
-    start = end_velocity[:, 1:] * jnp.stack([jnp.ones_like(touch), model.bound_radius[c.a] + model.bound_radius[c.b]], -1)
+    reach = model.bound_radius[c.a] + model.bound_radius[c.b]
+    start = end_velocity[:, 1:] * jnp.stack([jnp.ones_like(touch), reach], -1)
     return end_velocity, jnp.where(jnp.abs(start) > touch[:, None], jnp.sign(start), 0.0)
 
 

@@ -87,14 +87,14 @@ class Jump(NamedTuple):
 def velocity_jump(model: Model, params: Params, ops: Operators, frame: ContactFrame, pred: Prediction,
                   rows: ImpactRows, op_m, p1: jax.Array) -> Jump:
     """The impact law on the compression ``p1`` (its solve's operand ``op_m``), v* = v +
-    M^-1 J^T P, and each body's clock, its cluster's impact instant (a mesh's elements
-    share their latest): it moves with v until then, with v* after."""
+    M^-1 J^T P, and each body's clock, its cluster's impact instant t* (a mesh's elements
+    share their latest): it moves with v until t*, with v* after."""
     c, n = frame.contacts, model.n_bodies
     impulse, _, _ = impact_law(apply_w, op_m, rows.v_minus, rows.sets, frame.restitution, rows.struck, c.a, c.b,
                                model.fixed, p1)
     v_star = ops.vel + respond(ops.m_inv, rows.jac, c, impulse)
     moved = rows.sets.enabled & (impulse[:, 0] > 0)
-    at = jnp.where(moved, pred.t_row, 0.0)
+    at = jnp.where(moved, pred.t_jump, 0.0)
     clock = jnp.maximum(jax.ops.segment_max(at, c.a, n), jax.ops.segment_max(at, c.b, n))
     clock = mesh_clock(model.mesh, jnp.where(model.fixed, 0.0, jnp.maximum(clock, 0.0)))
     return Jump(impulse=impulse, v_star=v_star, shift=-(v_star - ops.vel) * clock[:, None],

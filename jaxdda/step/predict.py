@@ -22,6 +22,7 @@ class Prediction(NamedTuple):
 
     accel: jax.Array  # (N, 6) the free acceleration (loads and prior forces)
     t_row: jax.Array  # (C,) the instant each contact takes part in the impacts at
+    t_jump: jax.Array  # (C,) the instant its cluster's velocities jump at (its first t*)
     isolated: jax.Array  # (C,) bool: a contact of an isolated pair (exact event)
     engaged: jax.Array  # (C,) bool: loaded, cemented, closed, or closing on the free path
     loaded: jax.Array  # (C,) bool: carried force last step, or cemented, and not opening
@@ -75,21 +76,29 @@ def predict(model: Model, state: State, params: Params, ops: Operators, frame: C
     # a touching contact that does not approach strikes nothing).
     rate = jax.jvp(gap_on_path, (t_own,), (jnp.ones_like(t_own),))[1]
     striking = engaged & hits & ~loaded & (rate < -frame.touch / dt)
-    t_row = impact_instants(model, c, engaged, loaded, striking, t_own)
-    return Prediction(accel=accel, t_row=t_row, isolated=isolated_pairs(model, c, engaged, loaded), engaged=engaged,
-                      loaded=loaded, p_prior=p_prior, push0=push0)
+    pressing = loaded & (v_rel[:, 0] < -frame.touch / dt)  # a sustained contact approaching at the start
+    t_row, t_jump = impact_instants(model, c, engaged, loaded, pressing, striking, t_own)
+    return Prediction(accel=accel, t_row=t_row, t_jump=t_jump, isolated=isolated_pairs(model, c, engaged, loaded),
+                      engaged=engaged, loaded=loaded, p_prior=p_prior, push0=push0)
 
 
-def impact_instants(model: Model, c, engaged: jax.Array, loaded: jax.Array, striking: jax.Array,
-                    t_own: jax.Array) -> jax.Array:
-    """Per contact: its cluster's instant, the first t* of its ``striking`` contacts; 0 for
-    a cluster none strikes, or one that carries a sustained force (Moreau: its velocities
-    at a later t* are not known without the forces before it)."""
+def impact_instants(model: Model, c, engaged: jax.Array, loaded: jax.Array, pressing: jax.Array,
+                    striking: jax.Array, t_own: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """Per contact: its cluster's impact instant t*, the first of its ``striking``
+    contacts (0 where none strikes), at which its velocities jump; and the instant its
+    impact rows are read at: t*, or 0 for a cluster that carries a sustained force
+    (Moreau: its velocities at t* are not known without the forces before it, so the jump
+    is computed from the step's start, and still takes effect at t*). A cluster one of
+    whose sustained contacts is ``pressing`` (approaches at the start) jumps at 0: moving
+    on with its old velocities until t* would drive that contact into overlap
+    (docs/design.md, "Clock")."""
     n = model.n_bodies
     label = cluster_labels(engaged, c.a, c.b, model.fixed)
     first = jax.ops.segment_min(jnp.where(striking, t_own, jnp.inf), label, n + 1)[label]
     carrying = jax.ops.segment_max(loaded.astype(jnp.int32), label, n + 1)[label] > 0
-    return jnp.where(engaged & jnp.isfinite(first) & ~carrying, first, 0.0)
+    held = jax.ops.segment_max(pressing.astype(jnp.int32), label, n + 1)[label] > 0
+    t_jump = jnp.where(engaged & jnp.isfinite(first) & ~held, first, 0.0)
+    return jnp.where(carrying, 0.0, t_jump), t_jump
 
 
 def isolated_pairs(model: Model, c, engaged: jax.Array, loaded: jax.Array) -> jax.Array:
