@@ -24,8 +24,8 @@ from jaxdda.scene.io import save_scene
 from jaxdda.scene.loader import load_scene
 from jaxdda.simulate import Trajectory, simulate
 from jaxdda.step import rollout, step
-from jaxdda.types import Model, Params, State, StepInfo
+from jaxdda.types import Model, Params, State, StepInfo, StepOptions
 
 __all__ = ["calibrate", "Calibration", "monte_carlo", "MonteCarlo", "Observable", "SceneBuilder", "Scene", "load_scene", "save_scene", "save_checkpoint", "load_checkpoint", "energy", "simulate", "Trajectory", "step", "rollout", "examples", "Model",
-           "Params", "State", "StepInfo", "SceneError", "CapacityError", "ConvergenceError"]
+           "Params", "StepOptions", "State", "StepInfo", "SceneError", "CapacityError", "ConvergenceError"]
 __version__ = "0.1.0"

@@ -37,7 +37,7 @@ from pathlib import Path
 import jax.numpy as jnp
 import numpy as np
 
-from jaxdda.types import Capacities, Model, Params, State
+from jaxdda.types import Capacities, Model, Params, State, StepOptions
 
 FORMAT = "jaxdda-checkpoint"
 VERSION = 1
@@ -81,7 +81,7 @@ _META = {"format": ("U", 0), "version": ("i", 0), "jaxdda_version": ("U", 0), "s
          "model.capacity": ("i", 1), "model.n_bodies": ("i", 0), "model.max_vertices": ("i", 0),
          "scene.name": ("U", 0), "scene.labels": ("U", 1), "scene.materials": ("U", 1),
          "scene.measured_body": ("i", 1), "scene.measured_point": ("f", 2)}
-_OPTIONAL = {"scene.file": ("U", 0)}
+_OPTIONAL = {"scene.file": ("U", 0), "model.options": ("U", 0)}  # (absent: none, the default options)
 
 for _group, _cls, _spec in _GROUPS:  # the format covers every leaf of the three types
     assert set(_spec) == {f.name for f in dataclasses.fields(_cls) if not f.metadata.get("static")}, _group
@@ -171,7 +171,8 @@ def save_checkpoint(path, source, state: State | None = None, params: Params | N
               "jaxdda_version": np.array(_jaxdda_version()), "step": np.array(0 if step is None else int(step), np.int64),
               "model.capacity": np.array(dataclasses.astuple(model.capacity), np.int64),
               "model.n_bodies": np.array(model.n_bodies, np.int64),
-              "model.max_vertices": np.array(model.max_vertices, np.int64)}
+              "model.max_vertices": np.array(model.max_vertices, np.int64),
+              "model.options": np.array(json.dumps(dataclasses.asdict(model.options)))}
     for group, _, spec in _GROUPS:
         obj = {"model": model, "state": state, "params": params}[group]
         for name in spec:
@@ -237,7 +238,8 @@ def load_checkpoint(path) -> Checkpoint:
                               f"contact capacity {capacity.contacts}, but the arrays hold {sizes['N']} bodies, "
                               f"{sizes['V']} vertices, {sizes['C']} contact slots")
     leaves = {group: {name: jnp.asarray(arrays[f"{group}.{name}"]) for name in spec} for group, _, spec in _GROUPS}
-    model = Model(**leaves["model"], capacity=capacity, n_bodies=n_bodies, max_vertices=max_vertices)
+    model = Model(**leaves["model"], capacity=capacity, n_bodies=n_bodies, max_vertices=max_vertices,
+                  options=_options(arrays, where))
     measured = tuple((int(b), np.asarray(p, float)) for b, p in
                      zip(arrays["scene.measured_body"], arrays["scene.measured_point"]))
     scene_file = str(arrays["scene.file"]) if "scene.file" in arrays else None
@@ -245,6 +247,16 @@ def load_checkpoint(path) -> Checkpoint:
                       str(arrays["scene.name"]), tuple(str(x) for x in arrays["scene.labels"]),
                       tuple(str(x) for x in arrays["scene.materials"]), measured, scene_file,
                       str(arrays["jaxdda_version"]), int(arrays["version"]))
+
+
+def _options(arrays: dict, where: str) -> StepOptions:
+    """The step options a checkpoint was saved with (the defaults where it has none)."""
+    if "model.options" not in arrays:
+        return StepOptions()
+    try:
+        return StepOptions(**json.loads(str(arrays["model.options"])))
+    except (ValueError, TypeError) as err:
+        raise CheckpointError(f"{where}: array 'model.options' is not a set of step options ({err})") from None
 
 
 def _check(arrays: dict, where: str) -> dict:

@@ -64,7 +64,8 @@ def impact_time(gap: jax.Array, vn: jax.Array, an: jax.Array, dt: jax.Array, tou
 IMPACT_PASSES = 6
 
 
-def exact_impact_time(gap: jax.Array, vn: jax.Array, an: jax.Array, dt: jax.Array, touch: jax.Array, gap_at):
+def exact_impact_time(gap: jax.Array, vn: jax.Array, an: jax.Array, dt: jax.Array, touch: jax.Array, gap_at,
+                      passes: int = IMPACT_PASSES):
     """``impact_time`` on the exact gap along the predicted path: ``gap_at(t)`` (C,) is the
     gap with each contact's bodies moved to time t (C,) of their free motion.
 
@@ -74,14 +75,15 @@ def exact_impact_time(gap: jax.Array, vn: jax.Array, an: jax.Array, dt: jax.Arra
     turning corner does the same. Each pass fits the quadratic's curvature to the exact
     gap at the current root (an + 2 (gap_at(t) - linear(t)) / t^2) and solves it again;
     from the end of the step where the linear model finds no root, so an impact it misses
-    is found.
+    is found. ``passes`` (static) refits; 0: the start frame's quadratic alone.
     """
     def refit(_, t_hits):  # one pass (a loop, not unrolled: gap_at is a large part of the step's code)
         at = jnp.where(t_hits[0] > 1e-3 * dt, t_hits[0], dt)  # a root near 0 takes the curvature of the whole step
         linear = gap + vn * at + 0.5 * an * at * at
         return impact_time(gap, vn, an + 2.0 * (gap_at(at) - linear) / (at * at), dt, touch)
 
-    return jax.lax.fori_loop(0, IMPACT_PASSES, refit, impact_time(gap, vn, an, dt, touch))
+    first = impact_time(gap, vn, an, dt, touch)
+    return jax.lax.fori_loop(0, passes, refit, first) if passes else first
 
 
 def mesh_clock(mesh: jax.Array, clock: jax.Array) -> jax.Array:

@@ -52,6 +52,28 @@ class Capacities:
                           grow(self.contacts, needed.contacts * f_cand * f_pairs))
 
 
+@dataclasses.dataclass(frozen=True)
+class StepOptions:
+    """The step's refinements of Moreau's scheme (docs/design.md, "The step"), each one
+    switchable so that its cost and its gain can be measured (``experiments/step_options.py``).
+    Static: each set of options is its own compiled program. All on by default.
+    """
+
+    impact_instants: bool = True  # an impact at its instant t* inside the step; off: at the step's start (Moreau)
+    impact_refits: int = 6  # refits of t* to the exact gap on the free path (0: the start frame's quadratic)
+    windows: bool = True  # an isolated pair's force acts from its t* only (windows and late kicks)
+    discrete_gradient: bool = True  # the normal row is the discrete gradient of the gap (no work when closed)
+    linearisation_cut: bool = True  # linearise where the predictor first overlaps a contact, not at its end
+    newton_finish: bool = True  # semismooth Newton finishes a stalled FISTA solve; off: FISTA to max_iter
+
+    def __post_init__(self):
+        if not isinstance(self.impact_refits, int) or self.impact_refits < 0:
+            raise ValueError(f"StepOptions.impact_refits must be an int >= 0, got {self.impact_refits!r}")
+        for f in dataclasses.fields(self):
+            if f.type == "bool" and not isinstance(getattr(self, f.name), bool):
+                raise ValueError(f"StepOptions.{f.name} must be True or False, got {getattr(self, f.name)!r}")
+
+
 @pytree_dataclass
 class Model:
     """Geometry and topology of a scene: what does not change in a step, and no gradient.
@@ -104,6 +126,7 @@ class Model:
     capacity: Capacities = static_field()
     n_bodies: int = static_field()
     max_vertices: int = static_field()
+    options: StepOptions = static_field(default=StepOptions())  # the step's refinements (static)
 
 
 @pytree_dataclass

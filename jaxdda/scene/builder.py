@@ -47,6 +47,12 @@ class Scene:
     def n_bodies(self) -> int:
         return self.model.n_bodies
 
+    def with_options(self, **changes) -> "Scene":
+        """This scene with some of the step's refinements switched (``StepOptions``): e.g.
+        ``scene.with_options(newton_finish=False)``."""
+        options = dataclasses.replace(self.model.options, **changes)
+        return dataclasses.replace(self, model=dataclasses.replace(self.model, options=options))
+
 
 @dataclasses.dataclass(frozen=True)
 class Mesh:

@@ -46,7 +46,7 @@ class Problem(NamedTuple):
 
 def solve(apply_w: Callable[[Any, jax.Array], jax.Array], operand: Any, w_diag: jax.Array, b: jax.Array,
           sets: ContactSets, p0: jax.Array, tol: jax.Array,
-          max_iter: jax.Array, force_scale: jax.Array = 0.0) -> Solution:
+          max_iter: jax.Array, force_scale: jax.Array = 0.0, newton: bool = True) -> Solution:
     """Solve the contact QVI over the sets X(p) of ``solver.sets`` (eqs. 39, 58, 65).
 
     Differentiable in ``operand``, ``b`` and the float fields of ``sets`` (implicitly, at
@@ -61,6 +61,8 @@ def solve(apply_w: Callable[[Any, jax.Array], jax.Array], operand: Any, w_diag: 
       tol: relative tolerance on the natural residual; max_iter: iteration cap.
       force_scale: the residual is measured relative to max(max |p|, force_scale), so
         forces far below the scene's own scale (round-off) need no iterations.
+      newton: (static) finish a stalled FISTA by semismooth Newton; False: FISTA alone,
+        until converged or ``max_iter``.
     """
     w_diag, p0, tol, max_iter, force_scale = jax.lax.stop_gradient((w_diag, p0, tol, max_iter, force_scale))
     enabled = sets.enabled & jnp.all(w_diag[:, :2] > 0, -1)
@@ -91,7 +93,10 @@ def solve(apply_w: Callable[[Any, jax.Array], jax.Array], operand: Any, w_diag: 
 
     y0 = p0 / jnp.where(scale > 0, scale, 1.0)
     fista = _fista_start(*args, y0, jnp.int32(0), jnp.ones_like(tol), force_scale)
-    fista, _ = jax.lax.while_loop(cond, body, (fista, jnp.int32(STALL)))
+    if newton:
+        fista, _ = jax.lax.while_loop(cond, body, (fista, jnp.int32(STALL)))
+    else:
+        fista = _iterate(*args, fista, tol, max_iter, force_scale, jnp.iinfo(jnp.int32).max)
     y, k, res = fista.y_best, fista.k, fista.res_best
     y = _implicit(apply_w, operand, b, sets, scale, y)
     return Solution(scale * y, k, res, res <= tol)

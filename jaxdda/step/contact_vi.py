@@ -121,10 +121,13 @@ def contact_problem(model: Model, state: State, params: Params, ops: Operators, 
 
     carried = jnp.where(win.windowed[:, None], 0.0, pred.p_prior)  # a windowed force acts from t* only
     d_base, d_pred, flex = predictor(model, state, params, ops, c, jump, pred, carried)
-    d_lin = linearisation_point(model, params, c, frame.gap0, d_pred, gap_change_by(d_pred))
+    options = model.options
+    d_lin = (linearisation_point(model, params, c, frame.gap0, d_pred, gap_change_by(d_pred))
+             if options.linearisation_cut else d_pred)
     change = gap_change_by(d_lin)
     jac, normal, point = mid_frame(state, c, d_lin, win.u_clock)
-    jac = discrete_gradient(jac, c, d_lin - win.u_clock, change - gap_change_by(win.u_clock), model.bound_radius)
+    if options.discrete_gradient:
+        jac = discrete_gradient(jac, c, d_lin - win.u_clock, change - gap_change_by(win.u_clock), model.bound_radius)
     w = win.windowed[:, None]
     end_velocity = jnp.where(w, 0.5 * win.rest[:, None] * apply_jacobian(jac, c, win.v_clock),
                              apply_jacobian(jac, c, 0.5 * dt * jump.v_star))

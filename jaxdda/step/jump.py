@@ -67,6 +67,7 @@ def window(model: Model, params: Params, ops: Operators, c, pred: Prediction, mo
     n, dt = model.n_bodies, params.dt
     loose = loose_bodies(model) | model.fixed
     windowed = pred.isolated & moved & (pred.t_row > 0) & (pred.t_row <= 0.5 * dt) & loose[c.a] & loose[c.b]
+    windowed = windowed & model.options.windows
     t_win = jnp.where(windowed, pred.t_row, 0.0)
     t_body = jnp.maximum(jax.ops.segment_max(t_win, c.a, n), jax.ops.segment_max(t_win, c.b, n))
     t_body = jnp.where(model.fixed, 0.0, jnp.maximum(t_body, 0.0))

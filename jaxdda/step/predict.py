@@ -68,7 +68,8 @@ def predict(model: Model, state: State, params: Params, ops: Operators, frame: C
         return gap0 + gap_change_at(c, state.centroid, state.rotation, free_path(ops, c, t, 0, accel)[0],
                                     free_path(ops, c, t, 1, accel)[0])
 
-    t_own, hits = exact_impact_time(gap0, v_rel[:, 0], a_rel[:, 0], dt, frame.touch, gap_on_path)
+    t_own, hits = exact_impact_time(gap0, v_rel[:, 0], a_rel[:, 0], dt, frame.touch, gap_on_path,
+                                    model.options.impact_refits)
     live = c.valid & ~opening
     loaded = live & ((frame.p0[:, 0] > 0) | frame.cemented)
     engaged = live & (loaded | hits | (gap0 <= params.margin))
@@ -77,13 +78,14 @@ def predict(model: Model, state: State, params: Params, ops: Operators, frame: C
     rate = jax.jvp(gap_on_path, (t_own,), (jnp.ones_like(t_own),))[1]
     striking = engaged & hits & ~loaded & (rate < -frame.touch / dt)
     pressing = loaded & (v_rel[:, 0] < -frame.touch / dt)  # a sustained contact approaching at the start
-    t_row, t_jump = impact_instants(model, c, engaged, loaded, pressing, striking, t_own)
+    t_row, t_jump = impact_instants(model, c, engaged, loaded, pressing, striking, t_own,
+                                    model.options.impact_instants)
     return Prediction(accel=accel, t_row=t_row, t_jump=t_jump, isolated=isolated_pairs(model, c, engaged, loaded),
                       engaged=engaged, loaded=loaded, p_prior=p_prior, push0=push0)
 
 
 def impact_instants(model: Model, c, engaged: jax.Array, loaded: jax.Array, pressing: jax.Array,
-                    striking: jax.Array, t_own: jax.Array) -> tuple[jax.Array, jax.Array]:
+                    striking: jax.Array, t_own: jax.Array, at_instants: bool = True) -> tuple[jax.Array, jax.Array]:
     """Per contact: its cluster's impact instant t*, the first of its ``striking``
     contacts (0 where none strikes), at which its velocities jump; and the instant its
     impact rows are read at: t*, or 0 for a cluster that carries a sustained force
@@ -91,10 +93,12 @@ def impact_instants(model: Model, c, engaged: jax.Array, loaded: jax.Array, pres
     is computed from the step's start, and still takes effect at t*). A cluster one of
     whose sustained contacts is ``pressing`` (approaches at the start) jumps at 0: moving
     on with its old velocities until t* would drive that contact into overlap
-    (docs/design.md, "Clock")."""
+    (docs/design.md, "Clock"). Without ``at_instants`` (static) every cluster jumps at 0."""
     n = model.n_bodies
     label = cluster_labels(engaged, c.a, c.b, model.fixed)
     first = jax.ops.segment_min(jnp.where(striking, t_own, jnp.inf), label, n + 1)[label]
+    if not at_instants:  # Moreau: every impact at the step's start
+        first = jnp.where(jnp.isfinite(first), 0.0, first)
     carrying = jax.ops.segment_max(loaded.astype(jnp.int32), label, n + 1)[label] > 0
     held = jax.ops.segment_max(pressing.astype(jnp.int32), label, n + 1)[label] > 0
     t_jump = jnp.where(engaged & jnp.isfinite(first) & ~held, first, 0.0)

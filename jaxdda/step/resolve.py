@@ -67,7 +67,7 @@ def impacts_then_contacts(model: Model, state: State, params: Params, ops: Opera
     def solve(p1, second):
         problem, ctx = jax.lax.cond(second, contacts, first, p1)
         sol = fista_newton.solve(apply_w, problem.operand, problem.w_diag, problem.b, problem.sets, problem.warm,
-                                 params.tol, params.max_iter, problem.force_scale)
+                                 params.tol, params.max_iter, problem.force_scale, model.options.newton_finish)
         return sol.force, (sol, ctx, problem)
 
     _, (sols, ctxs, problems) = jax.lax.scan(solve, jnp.zeros_like(p0), jnp.arange(2) > 0)
