@@ -65,6 +65,9 @@ def window(model: Model, params: Params, ops: Operators, c, pred: Prediction, mo
            v_star: jax.Array) -> Window:
     """The windows of the isolated pairs struck at 0 < t* <= dt / 2 between loose bodies."""
     n, dt = model.n_bodies, params.dt
+    if not model.options.windows:  # every force acts over the whole step
+        none = jnp.zeros_like(pred.t_row)
+        return Window(windowed=none > 0, t_win=none, rest=none + dt, u_clock=jnp.zeros_like(v_star), v_clock=v_star)
     loose = loose_bodies(model) | model.fixed
     windowed = pred.isolated & moved & (pred.t_row > 0) & (pred.t_row <= 0.5 * dt) & loose[c.a] & loose[c.b]
     windowed = windowed & model.options.windows

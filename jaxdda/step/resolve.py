@@ -85,8 +85,10 @@ def step_end(model: Model, params: Params, ops: Operators, frame: ContactFrame, 
     con = solved.solutions.force[1]
     d = lin.d_base + respond(flex, jac, c, con)
     v_newmark = newmark_velocity(d - jump.shift, jump.v_star, dt, proj)
-    kick = late_kick(model, c, jac, ops, jump.win, con, v_newmark, params)
-    new_vel = v_newmark + matvec(proj, respond(ops.m_inv, jac, c, kick))
+    new_vel = v_newmark
+    if model.options.windows:
+        kick = late_kick(model, c, jac, ops, jump.win, con, v_newmark, params)
+        new_vel = new_vel + matvec(proj, respond(ops.m_inv, jac, c, kick))
     rest_mean = (dt / jump.win.rest)[:, None]  # a windowed force acts over h: its mean over the step
     return Resolution(displacement=d, velocity=new_vel, memory=con, force=con,
                       gap_end=apply_w(problem.operand, con)[:, 0] + problem.b[:, 0], w_nn=problem.w_diag[:, 0],
