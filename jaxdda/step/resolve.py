@@ -1,4 +1,4 @@
-"""The step's two contact solves through one traced solver, and its end (docs/design.md,
+"""The step's two contact solves through one jitted solver, and its end (docs/design.md,
 "The step"): the impacts' compression P1 (stage "impacts"), then the contact VI from the
 velocity jump it gives (stage "contact VI"); the end displacement and velocity."""
 from __future__ import annotations
@@ -46,32 +46,27 @@ class Solved(NamedTuple):
     solutions: fista_newton.Solution  # stacked: [impacts, contact VI]
 
 
+# The solver, jitted: traced once per problem size, one function of the step's program.
+_solve = jax.jit(fista_newton.solve, static_argnums=(0, 9))
+
+
 def impacts_then_contacts(model: Model, state: State, params: Params, ops: Operators, frame: ContactFrame,
                           pred: Prediction, rows: ImpactRows) -> Solved:
     """The impact solve (compression P1 on ``rows``), then the contact VI built from its
-    velocity jump: a scan of two steps over one ``lax.cond``, so the solver is traced once."""
+    velocity jump. Both through one jitted solver: traced once, one function called twice."""
     c, p0 = frame.contacts, frame.p0
     op_m, diag_m = flexibility(rows.jac, c, ops.m_inv)
     impacts = Problem(op_m, diag_m, rows.v_minus, rows.sets, jnp.zeros_like(p0), ops.momentum)
 
-    def contacts(p1):
-        jump = velocity_jump(model, params, ops, frame, pred, rows, op_m, p1)
-        problem, lin = contact_problem(model, state, params, ops, frame, pred, rows, jump)
-        return problem, (jump, lin)
+    def solve(problem):
+        return _solve(apply_w, problem.operand, problem.w_diag, problem.b, problem.sets, problem.warm, params.tol,
+                      params.max_iter, problem.force_scale, model.options.newton_finish)
 
-    context = jax.eval_shape(lambda p: contacts(p)[1], p0)
-
-    def first(_):
-        return impacts, jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), context)
-
-    def solve(p1, second):
-        problem, ctx = jax.lax.cond(second, contacts, first, p1)
-        sol = fista_newton.solve(apply_w, problem.operand, problem.w_diag, problem.b, problem.sets, problem.warm,
-                                 params.tol, params.max_iter, problem.force_scale, model.options.newton_finish)
-        return sol.force, (sol, ctx, problem)
-
-    _, (sols, ctxs, problems) = jax.lax.scan(solve, jnp.zeros_like(p0), jnp.arange(2) > 0)
-    (jump, lin), problem = jax.tree.map(lambda x: x[1], (ctxs, problems))
+    first = solve(impacts)
+    jump = velocity_jump(model, params, ops, frame, pred, rows, op_m, first.force)
+    problem, lin = contact_problem(model, state, params, ops, frame, pred, rows, jump)
+    second = solve(problem)
+    sols = jax.tree.map(lambda a, b: jnp.stack([a, b]), first, second)
     return Solved(jump=jump, problem=problem, linearised=lin, solutions=sols)
 
 
