@@ -59,13 +59,8 @@ def impact_time(gap: jax.Array, vn: jax.Array, an: jax.Array, dt: jax.Array, tou
     return jnp.minimum(t, dt), t <= dt * (1.0 + SIMULTANEITY)
 
 
-# Passes of exact_impact_time's root refinement, each fitting the gap's curvature anew: six
-# bring a disk crossing a ring's hole (test_physics) to 1e-12 m/s, four left 9e-10.
-IMPACT_PASSES = 6
-
-
 def exact_impact_time(gap: jax.Array, vn: jax.Array, an: jax.Array, dt: jax.Array, touch: jax.Array, gap_at,
-                      passes: int = IMPACT_PASSES):
+                      passes: int):
     """``impact_time`` on the exact gap along the predicted path: ``gap_at(t)`` (C,) is the
     gap with each contact's bodies moved to time t (C,) of their free motion.
 
@@ -75,7 +70,8 @@ def exact_impact_time(gap: jax.Array, vn: jax.Array, an: jax.Array, dt: jax.Arra
     turning corner does the same. Each pass fits the quadratic's curvature to the exact
     gap at the current root (an + 2 (gap_at(t) - linear(t)) / t^2) and solves it again;
     from the end of the step where the linear model finds no root, so an impact it misses
-    is found. ``passes`` (static) refits; 0: the start frame's quadratic alone.
+    is found. ``passes`` (static, ``StepOptions.impact_refits``) refits; 0: the start
+    frame's quadratic alone.
     """
     def refit(_, t_hits):  # one pass (a loop, not unrolled: gap_at is a large part of the step's code)
         at = jnp.where(t_hits[0] > 1e-3 * dt, t_hits[0], dt)  # a root near 0 takes the curvature of the whole step

@@ -70,7 +70,6 @@ def window(model: Model, params: Params, ops: Operators, c, pred: Prediction, mo
         return Window(windowed=none > 0, t_win=none, rest=none + dt, u_clock=jnp.zeros_like(v_star), v_clock=v_star)
     loose = loose_bodies(model) | model.fixed
     windowed = pred.isolated & moved & (pred.t_row > 0) & (pred.t_row <= 0.5 * dt) & loose[c.a] & loose[c.b]
-    windowed = windowed & model.options.windows
     t_win = jnp.where(windowed, pred.t_row, 0.0)
     t_body = jnp.maximum(jax.ops.segment_max(t_win, c.a, n), jax.ops.segment_max(t_win, c.b, n))
     t_body = jnp.where(model.fixed, 0.0, jnp.maximum(t_body, 0.0))
