@@ -18,7 +18,7 @@ from jaxdda.checkpoint import load_checkpoint, save_checkpoint
 from jaxdda.energy import energy
 from jaxdda.montecarlo import MonteCarlo, monte_carlo
 from jaxdda.observe import Observable
-from jaxdda.errors import CapacityError, ConvergenceError, SceneError
+from jaxdda.errors import CapacityError, ConvergenceError, NonConvergenceWarning, SceneError
 from jaxdda.scene.builder import Scene, SceneBuilder
 from jaxdda.scene.io import save_scene
 from jaxdda.scene.loader import load_scene
@@ -27,5 +27,6 @@ from jaxdda.step import rollout, step
 from jaxdda.types import Model, Params, State, StepInfo, StepOptions
 
 __all__ = ["calibrate", "Calibration", "monte_carlo", "MonteCarlo", "Observable", "SceneBuilder", "Scene", "load_scene", "save_scene", "save_checkpoint", "load_checkpoint", "energy", "simulate", "Trajectory", "step", "rollout", "examples", "Model",
-           "Params", "StepOptions", "State", "StepInfo", "SceneError", "CapacityError", "ConvergenceError"]
+           "Params", "StepOptions", "State", "StepInfo", "SceneError", "CapacityError", "ConvergenceError",
+           "NonConvergenceWarning"]
 __version__ = "0.1.0"

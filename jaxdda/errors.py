@@ -19,3 +19,9 @@ class ConvergenceError(RuntimeError):
     def __init__(self, message: str, *, step: int, time: float, dt: float, residual: float, iterations: int):
         super().__init__(message)
         self.step, self.time, self.dt, self.residual, self.iterations = step, time, dt, residual, iterations
+
+
+class NonConvergenceWarning(UserWarning):
+    """Steps of a run whose contact solve missed its tolerance (``simulate(...,
+    on_nonconvergence="continue")``): warned once per run, with their count and the worst
+    relative residual."""

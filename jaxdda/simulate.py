@@ -2,13 +2,14 @@
 from __future__ import annotations
 
 import dataclasses
+import warnings
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from jaxdda import programs
-from jaxdda.errors import CapacityError, ConvergenceError
+from jaxdda.errors import CapacityError, ConvergenceError, NonConvergenceWarning
 from jaxdda.progress import Progress
 from jaxdda.scene.builder import Scene
 from jaxdda.scene.capacity import capacity_class
@@ -208,6 +209,9 @@ def simulate(scene: Scene, steps: int, *, params: Params | None = None, chunk: i
       summed, residual and penetration the worst), and ``Trajectory.halvings`` says how
       many times each step was halved (0: not). A non-converged step costs a rerun of
       the chunk from it (see docs/design.md, "Non-convergence").
+
+    With ``"continue"``, a run with steps that did not converge warns once
+    (``NonConvergenceWarning``: their count, the worst residual and what to do).
     """
     for name, value in (("steps", steps), ("chunk", chunk), ("save_every", save_every)):
         if isinstance(value, bool) or int(value) != value or value < 1:
@@ -231,7 +235,7 @@ def simulate(scene: Scene, steps: int, *, params: Params | None = None, chunk: i
     model, state, params = jax.tree.map(jnp.asarray, pad_scene(own, shape))
     start = state
     length = int(chunk)
-    pieces, saved, converged, halvings, done = [], [np.zeros(1, np.int64)], [], [], 0
+    pieces, saved, converged, halvings, done, worst = [], [np.zeros(1, np.int64)], [], [], 0, 0.0
     bar = Progress(int(steps), "steps", steps > length if progress is None else bool(progress))
     while done < steps:
         model, state, end, out, n_valid, grown = _run_grown(model, state, params, min(length, steps - done), length,
@@ -245,6 +249,7 @@ def simulate(scene: Scene, steps: int, *, params: Params | None = None, chunk: i
         pieces.append(_own_bodies(jax.tree.map(lambda x: np.asarray(x)[keep], out), own))
         saved.append(number[keep])
         converged.append(ok[:n_ok])
+        worst = max(worst, float(np.max(np.asarray(info.residual)[:n_ok], where=~ok[:n_ok], initial=0.0)))
         halvings.append(np.zeros(n_ok, np.int64))
         bar.update(n_ok, iterations=int(np.asarray(info.iterations)[:n_valid].max()))
         state, done = end, done + n_ok
@@ -262,6 +267,7 @@ def simulate(scene: Scene, steps: int, *, params: Params | None = None, chunk: i
             halvings.append(np.array([depth]))
             bar.update(1, iterations=int(row[-1].iterations))
     bar.close()
+    _warn_unconverged(np.concatenate(converged), worst, params)
     final, first = (jax.tree.map(jnp.asarray, unpad_state(s, own, shape)) for s in (state, start))
     return dataclasses.replace(_assemble(scene, pieces, final, first), saved_steps=np.concatenate(saved),
                                step_converged=np.concatenate(converged), params=own.params, capacity=model.capacity,
@@ -317,6 +323,19 @@ def _subdivide(model, state, params, length, depth, limit, number):
             rows.append(row)
             deepest, left = max(deepest, sub), left - 1
     return model, state, _merge(rows), deepest
+
+
+def _warn_unconverged(converged: np.ndarray, worst: float, params: Params) -> None:
+    """Warn once (NonConvergenceWarning) where steps of the run did not converge."""
+    if converged.all():
+        return
+    first = int(np.argmin(converged)) + 1
+    warnings.warn(
+        f"{int((~converged).sum())} of {converged.size} steps did not converge (first: step {first}); worst relative "
+        f"residual {worst:.3g} against tol {float(np.asarray(params.tol)):.3g} (max_iter "
+        f"{int(np.asarray(params.max_iter))}). Their contact forces are the solver's best iterate: check "
+        "Trajectory.step_converged, or run with on_nonconvergence=\"halve\" (or \"raise\"), a looser tol, a "
+        "larger max_iter or a smaller dt", NonConvergenceWarning, stacklevel=3)
 
 
 def _own_bodies(out, scene: Scene):

@@ -12,13 +12,14 @@ that there is one. All runs share one compiled chunk (the same scene, capacities
 chunk length; dt and max_iter are traced parameters).
 """
 import dataclasses
+import warnings
 
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import jaxdda
-from jaxdda.errors import ConvergenceError
+from jaxdda.errors import ConvergenceError, NonConvergenceWarning
 
 STEPS, CHUNK, MAX_ITER = 30, 30, 225
 
@@ -62,6 +63,27 @@ def test_continue_reports_the_steps_that_did_not_converge(reported):
     np.testing.assert_array_equal(reported.step_converged, reported.info.converged)
     assert reported.info.residual[k] > float(reported.params.tol)
     assert not reported.halvings.any()
+
+
+def test_continue_warns_once_with_count_worst_residual_and_advice(scene, reported):
+    failed = ~reported.step_converged
+    worst = float(reported.info.residual[failed].max())
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        jaxdda.simulate(scene, STEPS, chunk=CHUNK)
+    ours = [w for w in caught if issubclass(w.category, NonConvergenceWarning)]
+    assert len(ours) == 1 and ours[0].filename == __file__  # points at the caller's line
+    message = str(ours[0].message)
+    assert message.startswith(f"{int(failed.sum())} of {STEPS} steps did not converge")
+    assert f"worst relative residual {worst:.3g} against tol {float(reported.params.tol):.3g}" in message
+    for advice in ("on_nonconvergence", "tol", "max_iter", "dt"):
+        assert advice in message
+
+
+def test_a_run_that_converges_or_halves_does_not_warn(scene):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", NonConvergenceWarning)
+        assert jaxdda.simulate(scene, STEPS, chunk=CHUNK, on_nonconvergence="halve").step_converged.all()
 
 
 def test_raise_names_the_step(scene, reported):
