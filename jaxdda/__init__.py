@@ -12,6 +12,10 @@ import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)  # forces of 1e7 N next to errors of 1e-3 N
 
+from jaxdda import cache  # noqa: E402
+
+cache.enable()  # compiled programs persist across processes (``jaxdda.cache``)
+
 from jaxdda import examples
 from jaxdda.calibrate import Calibration, calibrate
 from jaxdda.checkpoint import load_checkpoint, save_checkpoint

@@ -1,5 +1,5 @@
 """Command line: ``jaxdda run NAME_OR_FILE [--steps N] [--out run.npz] [--plot run.png] ...``,
-``jaxdda export NAME FILE.toml`` and ``jaxdda list``."""
+``jaxdda export NAME FILE.toml``, ``jaxdda list`` and ``jaxdda cache [--clear]``."""
 from __future__ import annotations
 
 import argparse
@@ -12,6 +12,7 @@ import numpy as np
 
 from jaxdda import examples
 from jaxdda.errors import CapacityError, ConvergenceError, SceneError
+from jaxdda.simulate import CHUNK
 
 
 class _UsageError(Exception):
@@ -53,8 +54,8 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--checkpoint", metavar="FILE.npz", help="save the final state to restart from (--resume)")
     run.add_argument("--resume", metavar="FILE.npz", help="continue from a checkpoint of this scene (--checkpoint): "
                                                           "--steps more steps, bit-identical to an unbroken run")
-    run.add_argument("--chunk", type=_positive_int, default=2000,
-                     help="steps per compiled chunk (default: 2000)")
+    run.add_argument("--chunk", type=_positive_int, default=CHUNK,
+                     help=f"steps per compiled chunk (default: {CHUNK}, as simulate's, so they share programs)")
     run.add_argument("--on-nonconvergence", choices=("continue", "halve", "raise"), default="continue",
                      help="a step whose contact solve does not converge: go on and report it (default), run it "
                           "again as steps of dt/2 (down to dt/16), or stop with an error")
@@ -70,6 +71,11 @@ def _parser() -> argparse.ArgumentParser:
     ntdda.add_argument("analysis", metavar="ANA", nargs="?", help="the analysis file")
     ntdda.add_argument("--out", metavar="FILE", required=True, help="the scene file to write (.toml or .json)")
     sub.add_parser("list", help="list the built-in examples")
+    cache = sub.add_parser("cache", help="show (or clear) the cache of compiled programs",
+                           description="Show where compiled programs are kept, their number and size; "
+                                       "--clear deletes them. JAXDDA_CACHE=DIR moves the cache, "
+                                       "JAXDDA_CACHE=off turns it off.")
+    cache.add_argument("--clear", action="store_true", help="delete every cached program")
     return parser
 
 
@@ -89,6 +95,8 @@ def main(argv: list[str] | None = None) -> int:
             return _export(args)
         if args.command == "ntdda":
             return _ntdda(args)
+        if args.command == "cache":
+            return _cache(args)
         parser.print_help(sys.stderr)
         return 2
     except (_UsageError, SceneError) as err:
@@ -106,6 +114,19 @@ def main(argv: list[str] | None = None) -> int:
 def _list() -> int:
     for name in examples.names():
         print(f"{name:<12} {examples.default_steps(name):>6} steps  {examples.describe(name)}")
+    return 0
+
+
+def _cache(args) -> int:
+    from jaxdda import cache
+
+    path = cache.folder()
+    if path is None:
+        print("the cache of compiled programs is off (JAXDDA_CACHE)")
+        return 0
+    entries, size = cache.clear(path) if args.clear else cache.size(path)
+    verb = "deleted" if args.clear else "holds"
+    print(f"{path} {verb} {entries} compiled programs, {size / 2**20:.1f} MiB")
     return 0
 
 

@@ -171,7 +171,10 @@ def with_capacity(model: Model, state: State, capacity: Capacities) -> tuple[Mod
     return dataclasses.replace(model, capacity=capacity), dataclasses.replace(state, contact_key=key, contact_force=force)
 
 
-def simulate(scene: Scene, steps: int, *, params: Params | None = None, chunk: int = 1000, save_every: int = 1,
+CHUNK = 1000  # steps per compiled chunk, by default (the CLI's too: they share programs)
+
+
+def simulate(scene: Scene, steps: int, *, params: Params | None = None, chunk: int = CHUNK, save_every: int = 1,
              progress: bool | None = None, state: State | None = None, on_nonconvergence: str = "continue",
              max_halvings: int = 4) -> Trajectory:
     """Run ``steps`` (>= 1) steps of ``scene`` and return the trajectory.
