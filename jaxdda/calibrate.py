@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from typing import Callable, Sequence
+from typing import Callable, NamedTuple, Sequence
 
 import jax
 import jax.flatten_util
@@ -16,10 +16,11 @@ import numpy as np
 import optax
 
 from jaxdda.errors import CapacityError
+from jaxdda.progress import Progress
 from jaxdda.scene.builder import Scene
 from jaxdda.simulate import MAX_REGROW, Trajectory, simulate, with_capacity
 from jaxdda.step import rollout
-from jaxdda.types import Capacities, Params, State
+from jaxdda.types import Capacities, Model, Params, State
 
 TABLES = ("friction", "restitution", "cohesion", "rolling", "tensile")  # (M, M) per material pair
 PER_BODY = ("density", "young", "poisson")  # (N,)
@@ -99,13 +100,62 @@ def _start(params: Params, item: _Item, initial: dict) -> jax.Array:
     return jnp.asarray(value, float)
 
 
-def _apply(params: Params, items: Sequence[_Item], theta: dict) -> Params:
+def _apply(params: Params, fields: Sequence[tuple[str, str]], masks: Sequence, theta: dict) -> Params:
+    """``params`` with each fitted value (``theta`` by item name) set where its mask is."""
     updates = {}
-    for item in items:
-        value = jnp.exp(theta[item.name]) if item.field in POSITIVE else theta[item.name]
-        base = updates.get(item.field, getattr(params, item.field))
-        updates[item.field] = jnp.where(jnp.asarray(item.mask), value, base)
+    for (name, field), mask in zip(fields, masks):
+        value = jnp.exp(theta[name]) if field in POSITIVE else theta[name]
+        base = updates.get(field, getattr(params, field))
+        updates[field] = jnp.where(jnp.asarray(mask), value, base)
     return dataclasses.replace(params, **updates)
+
+
+class _Spec(NamedTuple):
+    """What a fit compiles for (static, hashable): a second fit of the same kind reuses it."""
+    fields: tuple[tuple[str, str], ...]  # (item name, Params field)
+    observe: str | Callable
+    steps: int
+
+
+class _Problem(NamedTuple):
+    """What a fit runs on (arrays): the scene, the parameters not fitted, the target."""
+    model: Model
+    state: State
+    params: Params
+    target: jax.Array
+    masks: tuple[jax.Array, ...]
+
+
+def _residual(spec: _Spec, problem: _Problem, theta: dict):
+    """The misfit, scaled so that loss = |residual|^2, and (buffer counts, overflow)."""
+    params = _apply(problem.params, spec.fields, problem.masks, theta)
+    _, (states, infos) = rollout(problem.model, problem.state, params, spec.steps)
+    states = jax.tree.map(lambda s0, s: jnp.concatenate([s0[None], s]), problem.state, states)
+    err = (observe_trajectory(spec.observe, states) - problem.target).reshape(-1)
+    return err / np.sqrt(err.size), (jnp.max(infos.needed, 0), jnp.any(infos.overflow))
+
+
+@functools.partial(jax.jit, static_argnums=0)
+def _linearise(spec: _Spec, problem: _Problem, theta: dict):
+    """(residual, its Jacobian in the flattened theta by forward mode, aux)."""
+    flat, unravel = jax.flatten_util.ravel_pytree(theta)
+    jac, (r, aux) = jax.jacfwd(lambda y: (lambda o: (o[0], o))(_residual(spec, problem, unravel(y))),
+                               has_aux=True)(flat)
+    return r, jac, aux
+
+
+def _loss(spec: _Spec, problem: _Problem, theta: dict):
+    r, aux = _residual(spec, problem, theta)
+    return r @ r, aux
+
+
+@functools.partial(jax.jit, static_argnums=(0, 1))
+def _descend(spec: _Spec, optimizer, problem: _Problem, theta: dict, opt_state):
+    """One optax step on the loss (reverse mode): (new theta, new state, loss, aux)."""
+    (value, aux), grad = jax.value_and_grad(functools.partial(_loss, spec, problem), has_aux=True)(theta)
+    updates, opt_state = optimizer.update(grad, opt_state, theta, value=value, grad=grad,
+                                          value_fn=lambda t: _loss(spec, problem, t)[0])
+    return optax.apply_updates(theta, updates), opt_state, value, aux
 
 
 def observe_trajectory(observe: str | Callable, states: State) -> jax.Array:
@@ -128,7 +178,8 @@ def _target(target, observe) -> np.ndarray:
 
 def calibrate(scene: Scene, target, fit: Sequence[str], *, optimizer: optax.GradientTransformation | None = None,
               iterations: int = 100, observe: str | Callable = "centroid", initial: dict | None = None,
-              rupture_width: float | None = None, params: Params | None = None) -> Calibration:
+              rupture_width: float | None = None, params: Params | None = None,
+              progress: bool = True) -> Calibration:
     """Fit the parameters named in ``fit`` so that ``scene`` reproduces ``target``.
 
     Args:
@@ -150,65 +201,77 @@ def calibrate(scene: Scene, target, fit: Sequence[str], *, optimizer: optax.Grad
       rupture_width: the smoothed rupture of cemented joints (a force, N) used while
         fitting; default 1 % of the starting tensile strength when ``tensile`` is fitted,
         else the scene's (0). The returned params keep the scene's own (sharp) rupture.
+      progress: show a bar of iterations with the loss.
 
     The loss is the mean squared difference of the observed quantity over all steps.
-    Returns the final parameters (Calibration).
+    The compiled programs are kept: a second fit of the same items, observable, number
+    of steps and scene shape (other start values or targets; the same optimizer object)
+    compiles nothing. Returns the final parameters (Calibration).
     """
     items = [_item(scene, spec) for spec in fit]
     if not items:
         raise ValueError("fit names no parameter")
     base = scene.params if params is None else params
-    initial = dict(initial or {})
-    unknown = set(initial) - {i.name for i in items}
-    if unknown:
-        raise ValueError(f"initial values for items not fitted: {sorted(unknown)}")
-    theta = {item.name: _start(base, item, initial) for item in items}
+    theta = _starts(base, items, dict(initial or {}))
     target = jnp.asarray(_target(target, observe))
-    steps = int(target.shape[0]) - 1
-    if steps < 1:
+    spec = _Spec(tuple((i.name, i.field) for i in items), observe, int(target.shape[0]) - 1)
+    if spec.steps < 1:
         raise ValueError("the target needs at least two time points (t = 0 and one step)")
-    if rupture_width is None:
-        tensile = [i for i in items if i.field == "tensile"]
-        rupture_width = 0.01 * float(jnp.exp(theta[tensile[0].name])) if tensile else float(base.rupture_width)
-    fit_base = dataclasses.replace(base, rupture_width=jnp.asarray(float(rupture_width)))
+    fit_base = _fit_base(base, items, theta, rupture_width)
+    masks = tuple(jnp.asarray(i.mask) for i in items)
     # Buffers sized by a plain run at the start values, regrown if the fit outgrows them.
-    trial = simulate(scene, steps, params=_apply(fit_base, items, theta))
+    trial = simulate(scene, spec.steps, params=_apply(fit_base, spec.fields, masks, theta))
     needed = Capacities(*np.asarray(trial.info.needed).max(0).tolist())
     model, state = with_capacity(scene.model, scene.state, scene.model.capacity.grown(needed))
-
-    def make_residual(model, state):
-        def residual(theta):  # the misfit, scaled so that loss = |residual|^2
-            _, (states, infos) = rollout(model, state, _apply(fit_base, items, theta), steps)
-            states = jax.tree.map(lambda s0, s: jnp.concatenate([s0[None], s]), state, states)
-            err = (observe_trajectory(observe, states) - target).reshape(-1)
-            return err / np.sqrt(err.size), (jnp.max(infos.needed, 0), jnp.any(infos.overflow))
-        return residual
-
     if optimizer is None:
         logarithmic = {item.name: jnp.full(jnp.shape(theta[item.name]), item.field in POSITIVE) for item in items}
         method = functools.partial(_levenberg_marquardt, logarithmic=logarithmic)
     else:
-        method = _optax(optimizer)
-    history, trace = [], {item.name: [] for item in items}
-
-    def record(theta, value):
-        history.append(value)
-        for item in items:
-            trace[item.name].append(np.asarray(_value(item, theta[item.name])))
-
+        method = functools.partial(_optax, optax.with_extra_args_support(optimizer))
     for _ in range(MAX_REGROW):
-        theta_end, needed = method(make_residual(model, state), theta, int(iterations), record)
+        bar = Progress(int(iterations) + 1, "iterations", progress)
+        record = _Record(items, bar)
+        theta_end, needed = method(spec, _Problem(model, state, fit_base, target, masks), theta, int(iterations),
+                                   record)
+        bar.close()
         if needed is None:
             break
         model, state = with_capacity(model, state, model.capacity.grown(needed))
-        history.clear()
-        for v in trace.values():
-            v.clear()
     else:
         raise CapacityError(f"contact buffers kept overflowing during the fit (capacity {model.capacity})")
-    values = {item.name: _scalar(trace[item.name][-1]) for item in items}
-    return Calibration(_apply(base, items, theta_end), values, np.asarray(history),
-                       {k: np.asarray(v) for k, v in trace.items()})
+    values = {item.name: _scalar(record.trace[item.name][-1]) for item in items}
+    return Calibration(_apply(base, spec.fields, masks, theta_end), values, np.asarray(record.history),
+                       {k: np.asarray(v) for k, v in record.trace.items()})
+
+
+def _starts(params: Params, items: Sequence[_Item], initial: dict) -> dict:
+    unknown = set(initial) - {i.name for i in items}
+    if unknown:
+        raise ValueError(f"initial values for items not fitted: {sorted(unknown)}")
+    return {item.name: _start(params, item, initial) for item in items}
+
+
+def _fit_base(params: Params, items: Sequence[_Item], theta: dict, rupture_width: float | None) -> Params:
+    """The parameters a fit runs with: the rupture smoothed by ``rupture_width`` (default
+    1 % of the starting tensile strength when it is fitted, else the scene's)."""
+    if rupture_width is None:
+        tensile = [i for i in items if i.field == "tensile"]
+        rupture_width = 0.01 * float(jnp.exp(theta[tensile[0].name])) if tensile else float(params.rupture_width)
+    return dataclasses.replace(params, rupture_width=jnp.asarray(float(rupture_width)))
+
+
+class _Record:
+    """The loss and each item's value per iteration, shown on a progress bar."""
+
+    def __init__(self, items: Sequence[_Item], bar: Progress):
+        self.items, self.bar = items, bar
+        self.history, self.trace = [], {item.name: [] for item in items}
+
+    def __call__(self, theta: dict, value: float) -> None:
+        self.history.append(value)
+        for item in self.items:
+            self.trace[item.name].append(np.asarray(_value(item, theta[item.name])))
+        self.bar.update(1, loss=f"{value:.4g}")
 
 
 def _overflowed(aux):
@@ -216,17 +279,14 @@ def _overflowed(aux):
     return Capacities(*np.asarray(needed).tolist()) if bool(overflow) else None
 
 
-def _levenberg_marquardt(residual, theta, iterations, record, logarithmic):
+def _levenberg_marquardt(spec, problem, theta, iterations, record, logarithmic):
     """Levenberg-Marquardt on the misfit, its Jacobian by forward mode (one tangent per
     fitted value): the usual method for least squares with few parameters. Each iteration
     is one linearisation; a rejected step raises the damping and costs an iteration."""
     flat, unravel = jax.flatten_util.ravel_pytree(theta)
 
-    @jax.jit
     def linearise(x):
-        r, aux = residual(unravel(x))
-        jac = jax.jacfwd(lambda y: residual(unravel(y))[0])(x)
-        return r, jac, aux
+        return _linearise(spec, problem, unravel(x))
 
     x = flat
     full_radius = jnp.where(jax.flatten_util.ravel_pytree(logarithmic)[0], LM_RADIUS, LM_RADIUS * (1.0 + jnp.abs(flat)))
@@ -257,35 +317,18 @@ def _levenberg_marquardt(residual, theta, iterations, record, logarithmic):
     return unravel(x), None
 
 
-def _optax(optimizer):
+def _optax(optimizer, spec, problem, theta, iterations, record):
     """Gradient descent with an optax transformation on the loss |residual|^2 (reverse
     mode); line-search methods get the loss as ``value_fn``."""
-    optimizer = optax.with_extra_args_support(optimizer)
-
-    def run(residual, theta, iterations, record):
-        def loss(t):
-            r, aux = residual(t)
-            return r @ r, aux
-
-        value_and_grad = jax.value_and_grad(loss, has_aux=True)
-
-        @jax.jit
-        def update(theta, opt_state):
-            (value, aux), grad = value_and_grad(theta)
-            updates, opt_state = optimizer.update(grad, opt_state, theta, value=value, grad=grad,
-                                                  value_fn=lambda t: loss(t)[0])
-            return optax.apply_updates(theta, updates), opt_state, value, aux
-
-        opt_state = optimizer.init(theta)
-        for k in range(iterations + 1):  # the last pass only measures the final loss
-            new_theta, new_opt_state, value, aux = update(theta, opt_state)
-            if (needed := _overflowed(aux)) is not None:
-                return theta, needed
-            record(theta, float(value))
-            if k < iterations:
-                theta, opt_state = new_theta, new_opt_state
-        return theta, None
-    return run
+    opt_state = optimizer.init(theta)
+    for k in range(iterations + 1):  # the last pass only measures the final loss
+        new_theta, new_opt_state, value, aux = _descend(spec, optimizer, problem, theta, opt_state)
+        if (needed := _overflowed(aux)) is not None:
+            return theta, needed
+        record(theta, float(value))
+        if k < iterations:
+            theta, opt_state = new_theta, new_opt_state
+    return theta, None
 
 
 def _value(item: _Item, t: jax.Array) -> jax.Array:

@@ -5,6 +5,7 @@ import optax
 import pytest
 
 import jaxdda
+from tests.compiles import counting
 
 RECOVERY = 0.01  # the bar: within 1 % of the truth
 
@@ -15,12 +16,22 @@ def _recovered(cal, truth, reduction=1e-4):
     assert cal.history[-1] < reduction * cal.history[0]
 
 
-def test_friction_from_a_block_sliding_down_an_incline():
+def test_friction_from_a_block_sliding_down_an_incline(capsys):
     target = jaxdda.simulate(jaxdda.examples.get("incline", friction=0.3), 50)
     cal = jaxdda.calibrate(jaxdda.examples.get("incline"), target, ["friction"], initial={"friction": 0.45},
                            iterations=6)
     _recovered(cal, {"friction": 0.3})
     assert cal.history.shape == (7,) and cal.trace["friction"][0] == pytest.approx(0.45)
+    bar = capsys.readouterr().err  # progress by default: iterations and the loss
+    assert "7/7" in bar and "iterations" in bar and f"loss {cal.history[-1]:.4g}" in bar
+    # a second fit of the same kind (another start, another target) compiles nothing
+    other = jaxdda.simulate(jaxdda.examples.get("incline", friction=0.35), 50)
+    with counting() as compiled:
+        again = jaxdda.calibrate(jaxdda.examples.get("incline"), other, ["friction"], initial={"friction": 0.25},
+                                 iterations=6, progress=False)
+    assert compiled.compiles == 0
+    _recovered(again, {"friction": 0.35})
+    assert capsys.readouterr().err == ""
 
 
 def test_rolling_coefficient_from_a_disk_rolling_to_rest():

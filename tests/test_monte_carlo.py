@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 import jaxdda
+from tests.compiles import counting
 from jaxdda.observe import Observable
 from jaxdda.step import step
 from jaxdda.simulate import with_capacity
@@ -111,6 +112,16 @@ def test_batched_params_give_the_same_runs(incline, sliding):
     with pytest.raises(ValueError, match=r"params\.friction has shape"):
         jaxdda.monte_carlo(incline, 10, params=dataclasses.replace(params, friction=np.ones((4, 7, 7))),
                            progress=False)
+
+
+def test_a_second_study_of_the_batch_size_compiles_nothing_and_shows_progress(incline, sliding, capsys):
+    with counting() as compiled:
+        again = jaxdda.monte_carlo(incline, STEPS, velocity=V0[::-1, None] * SLOPE, params={"friction": MU[::-1]},
+                                   observe=OBSERVE, trajectories=True)
+    assert compiled.compiles == 0
+    np.testing.assert_allclose(again["runout"][::-1], sliding["runout"], rtol=1e-12, atol=1e-12)
+    bar = capsys.readouterr().err
+    assert f"{4 * STEPS}/{4 * STEPS}" in bar and "scenario-steps" in bar
 
 
 def test_exceedance_curve(sliding):
