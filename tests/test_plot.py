@@ -166,3 +166,72 @@ def test_charts_missing_matplotlib_message(monkeypatch, draw):
     monkeypatch.setitem(sys.modules, "matplotlib", None)
     with pytest.raises(ImportError, match=r'pip install "jaxdda\[plot\]"'):
         draw(with_contacts(trajectory(2)))
+
+
+# ------------------------------------------------ figures shaped as the scene
+
+from PIL import Image  # noqa: E402  (matplotlib needs Pillow)
+
+from jaxdda.viz.animate import animate_trajectory  # noqa: E402
+
+
+def slab_trajectory(width: float, rows: int, frames: int = 3) -> Trajectory:
+    """A fixed slab [0, width] x [0, 1] under ``rows`` stacked unit disks at each of
+    x = 2, 6, 10, ... (< width), the disks drifting right by 0.1 per frame: the bodies
+    span [0, width] x [0, 1 + rows]."""
+    sb = SceneBuilder(dt=0.01, name="slab")
+    sb.add_polygon(vertices=[(0, 0), (width, 0), (width, 1), (0, 1)], density=1.0, fixed=True)
+    for x in np.arange(2.0, width - 1.0, 4.0):
+        for k in range(rows):
+            sb.add_disk(center=(x, 1.5 + k), radius=0.5, density=1.0)
+    scene = sb.build()
+    moving = ~np.asarray(scene.model.fixed)
+    centroid = np.asarray(scene.state.centroid) + 0.1 * np.arange(frames)[:, None, None] * moving[None, :, None] * [1, 0]
+    zeros = np.zeros((frames, scene.n_bodies, 3))
+    return Trajectory(scene, np.arange(frames) * 0.01, centroid, np.zeros((frames, scene.n_bodies)), zeros, zeros,
+                      None, scene.state)
+
+
+def covers(ax, low, high) -> bool:
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    return x0 <= low[0] and x1 >= high[0] and y0 <= low[1] and y1 >= high[1]
+
+
+@pytest.mark.parametrize("draw", [plot_trajectory, plot_paths, plot_force_network])
+def test_wide_scene_gets_a_wide_figure(draw, tmp_path):
+    traj = slab_trajectory(20.0, 1)  # 20 m x 2 m
+    fig = draw(traj, tmp_path / "wide.png")
+    width, height = fig.get_size_inches()
+    assert width / height > 3 and max(width, height) == pytest.approx(7.0)
+    assert covers(fig.axes[0], (0.0, 0.0), (20.0, 2.0))
+    with Image.open(tmp_path / "wide.png") as png:
+        assert png.width / png.height > 3
+
+
+@pytest.mark.parametrize("draw", [plot_trajectory, plot_paths, plot_force_network])
+def test_square_scene_gets_a_square_figure(draw):
+    fig = draw(slab_trajectory(4.0, 3))  # 4 m x 4 m
+    width, height = fig.get_size_inches()
+    assert width / height == pytest.approx(1.0, abs=0.1)
+    assert covers(fig.axes[0], (0.0, 0.0), (4.0, 4.0))
+
+
+def test_tall_scene_aspect_is_clamped():
+    width, height = plot_paths(slab_trajectory(4.0, 40)).get_size_inches()  # 4 m x 41 m
+    assert width / height == pytest.approx(1 / 4)
+
+
+def test_figure_into_given_axes_keeps_its_size():
+    fig = Figure(figsize=(5, 5))
+    plot_trajectory(slab_trajectory(20.0, 1), ax=fig.add_subplot())
+    assert tuple(fig.get_size_inches()) == (5, 5)
+
+
+@pytest.mark.parametrize("width, rows", [(20.0, 1), (4.0, 3)])
+def test_gif_frames_follow_the_scene(tmp_path, width, rows):
+    path = tmp_path / "run.gif"
+    assert animate_trajectory(slab_trajectory(width, rows), path, frames=3, dpi=50) == 3
+    with Image.open(path) as gif:
+        aspect = gif.width / gif.height
+        assert gif.n_frames == 3 and max(gif.size) == pytest.approx(6 * 50, abs=2)
+    assert aspect > 3 if width > 4 * (rows + 1) else aspect == pytest.approx(1.0, abs=0.1)

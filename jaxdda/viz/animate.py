@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from jaxdda.types import POLYGON
-from jaxdda.viz.plot import _import_matplotlib, body_colors, body_shapes, connector_lines
+from jaxdda.viz.plot import _import_matplotlib, body_colors, body_shapes, connector_lines, figure_size, scene_box
 
 
 def animate_trajectory(traj, path, *, frames: int = 100, fps: int = 20, dpi: int = 80) -> int:
@@ -22,13 +22,10 @@ def animate_trajectory(traj, path, *, frames: int = 100, fps: int = 20, dpi: int
     colors = body_colors(model)
     round_colors = [colors[i] for i, k in enumerate(np.asarray(model.kind)) if k != POLYGON]
 
-    fig = figure.Figure(figsize=(6, 6))
+    lo, hi = scene_box(traj, picks)
+    fig = figure.Figure(figsize=figure_size(lo, hi, longest=6.0), layout="constrained")
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
-    reach = np.asarray(model.bound_radius, float)
-    lo = (centroid[picks] - reach[None, :, None]).min((0, 1))
-    hi = (centroid[picks] + reach[None, :, None]).max((0, 1))
-    pad = 0.05 * float(np.max(hi - lo))
 
     def draw(k: int):
         ax.clear()
@@ -41,8 +38,8 @@ def animate_trajectory(traj, path, *, frames: int = 100, fps: int = 20, dpi: int
         if model.connector_a.shape[0]:
             ax.add_collection(collections.LineCollection(connector_lines(model, centroid[frame], rotation[frame]),
                                                          colors="k", linewidths=1.0))
-        ax.set_xlim(lo[0] - pad, hi[0] + pad)
-        ax.set_ylim(lo[1] - pad, hi[1] + pad)
+        ax.set_xlim(lo[0], hi[0])
+        ax.set_ylim(lo[1], hi[1])
         ax.set_aspect("equal")
         ax.set_title(f"{traj.scene.name}: t = {float(traj.time[frame]):.4g} s")
         return []

@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from jaxdda.energy import energy
-from jaxdda.viz.plot import _import_matplotlib, body_colors, body_shapes, connector_lines, new_axes
+from jaxdda.viz.plot import (_import_matplotlib, body_colors, body_shapes, connector_lines, figure_size, new_axes,
+                             scene_box)
 
 NETWORK_LABEL = "force network"  # the label of plot_force_network's LineCollection
 
@@ -111,7 +112,7 @@ def plot_paths(traj, path=None, *, bodies=None, ax=None):
     ``bodies``: indices of the bodies to track (default: every free body, and each
     meshed block as a whole). Returns the Figure."""
     _, _, collections = _import_matplotlib()
-    fig, ax = new_axes(ax, path)
+    fig, ax = new_axes(ax, path, figure_size(*scene_box(traj)))
     model = traj.scene.model
     _draw_bodies(ax, traj, 0, alpha=0.2)
     if np.asarray(model.connector_a).shape[0]:
@@ -222,10 +223,10 @@ def plot_force_network(traj, path=None, *, step=-1, ax=None, max_width=6.0):
     (``max_width`` points for the largest); black: compression, red: tension of a cemented
     pair. The lines are one LineCollection labelled ``NETWORK_LABEL``. Returns the Figure."""
     _, _, collections = _import_matplotlib()
-    fig, ax = new_axes(ax, path)
     s = _n_steps(traj)
     index = (step % s) if s else 0
     frame = index + 1 if s else 0
+    fig, ax = new_axes(ax, path, figure_size(*scene_box(traj, frame)))
     _draw_bodies(ax, traj, frame, alpha=0.12, outline=0.5)
     model = traj.scene.model
     if np.asarray(model.connector_a).shape[0]:  # connectors, thin and grey, for orientation

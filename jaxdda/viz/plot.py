@@ -63,21 +63,55 @@ def connector_lines(model, centroid: np.ndarray, rotation: np.ndarray) -> list:
     return [[p, q] for p, q in zip(pa, pb)]
 
 
+def scene_box(traj, frames=slice(None)) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high) corners of the box that holds every body (polygon vertices, disk and
+    ring rims) at the saved states ``frames`` (an index or slice), 5 % wider each side."""
+    model, n = traj.scene.model, traj.scene.n_bodies
+
+    def pick(a):
+        return np.asarray(a, float)[frames].reshape((-1, n) + np.shape(a)[2:])
+
+    centroid, rotation = pick(traj.centroid), pick(traj.rotation)[..., None]
+    local = np.asarray(model.local_vertices, float)[None]
+    if traj.stretch is not None:
+        local = np.einsum("fnij,nvj->fnvi", pick(traj.stretch), local[0])
+    x, y = local[..., 0], local[..., 1]
+    corners = centroid[:, :, None] + np.stack([np.cos(rotation) * x - np.sin(rotation) * y,
+                                               np.sin(rotation) * x + np.cos(rotation) * y], -1)
+    kind = np.asarray(model.kind)
+    polygon = np.asarray(model.vertex_mask, bool) & (kind == POLYGON)[:, None]
+    rim = np.asarray(model.radius, float)[kind != POLYGON, None]
+    round_centroid = centroid[:, kind != POLYGON]
+    points = np.concatenate([corners[:, polygon], round_centroid - rim, round_centroid + rim], 1).reshape(-1, 2)
+    low, high = points.min(0), points.max(0)
+    pad = 0.05 * (high - low)
+    return low - pad, high + pad
+
+
+def figure_size(low, high, longest: float = 7.0, most: float = 4.0) -> tuple[float, float]:
+    """(width, height) in inches of a figure shaped as the box ``low`` .. ``high``, its
+    aspect clamped to between 1:``most`` and ``most``:1, its longer side ``longest``."""
+    width, height = np.asarray(high, float) - np.asarray(low, float)
+    aspect = float(np.clip(width / height, 1.0 / most, most))
+    return (longest, longest / aspect) if aspect >= 1.0 else (longest * aspect, longest)
+
+
 def new_axes(ax=None, path=None, figsize=(7, 7)):
-    """(figure, axes) to draw into: ``ax`` and its figure when given; else a new figure, on
-    the Agg canvas when it is to be saved to ``path`` (no display needed), else pyplot's."""
+    """(figure, axes) to draw into: ``ax`` and its figure when given; else a new figure of
+    ``figsize`` (constrained layout), on the Agg canvas when it is to be saved to ``path``
+    (no display needed), else pyplot's."""
     figure, _, _ = _import_matplotlib()
     if ax is not None:
         return ax.figure, ax
     if path is not None:
         from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-        fig = figure.Figure(figsize=figsize)
+        fig = figure.Figure(figsize=figsize, layout="constrained")
         FigureCanvasAgg(fig)
         return fig, fig.add_subplot()
     import matplotlib.pyplot as plt
 
-    return plt.subplots(figsize=figsize)
+    return plt.subplots(figsize=figsize, layout="constrained")
 
 
 def _rotation(theta):
@@ -95,7 +129,7 @@ def plot_trajectory(traj, path=None, *, ax=None, title=None):
     Returns the matplotlib Figure.
     """
     figure, patches, collections = _import_matplotlib()
-    fig, ax = new_axes(ax, path)
+    fig, ax = new_axes(ax, path, figure_size(*scene_box(traj)))
 
     model = traj.scene.model
     fixed = np.asarray(model.fixed, bool)
