@@ -17,7 +17,8 @@ Compile seconds are those JAX spent tracing, lowering and compiling during the c
 included); run seconds are the call's wall time less those (so they include the reruns of
 chunks whose buffers overflowed). float64 throughout, as jaxdda always runs. Cases run
 smallest first; a case whose estimate (the last case of its kind, run time scaled by the
-work) would take the seconds spent past --budget is skipped and listed. Prints a table and
+work) would take the seconds spent past --budget is skipped and listed; a case that
+fails (a device out of memory) is listed with its error. Prints a table and
 writes ``experiments/results/device_check_<platform>.json``.
 """
 from __future__ import annotations
@@ -42,7 +43,7 @@ from benchmarks import _json_default, log, machine_facts, md_table  # noqa: E402
 COMPILE_EVENTS = ("/jax/core/compile/jaxpr_trace_duration", "/jax/core/compile/jaxpr_to_mlir_module_duration",
                   "/jax/core/compile/backend_compile_duration")
 COLUMNS = ["case", "size", "steps", "devices", "compile s", "run s", "rate", "unit", "converged",
-           "iterations mean", "iterations max", "skipped"]
+           "iterations mean", "iterations max", "skipped", "error"]
 
 
 def parse(argv=None) -> argparse.Namespace:
@@ -158,7 +159,13 @@ def run_cases(args) -> list[dict]:
             rows.append({"case": case, "size": size, "steps": steps, "skipped": why})
             continue
         log(f"{case} {size}: {steps} steps")
-        row = run_rockfall(size, steps, args.batch_size) if case == "rockfall" else run_pile(size, steps)
+        t0 = time.perf_counter()
+        try:
+            row = run_rockfall(size, steps, args.batch_size) if case == "rockfall" else run_pile(size, steps)
+        except Exception as e:  # a device out of memory must not lose the other cases
+            log(f"{case} {size}: {type(e).__name__}: {e}")
+            row = {"case": case, "size": size, "steps": steps, "error": f"{type(e).__name__}: {e}"[:500],
+                   "wall s": time.perf_counter() - t0}
         rows.append(row)
         spent += row["wall s"]
     return rows

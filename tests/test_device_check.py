@@ -72,6 +72,20 @@ def test_budget_skips_the_cases_estimated_past_it(monkeypatch):
     assert dc.run_cases(dc.parse(["--batches", "8", "--pile", "--budget", "0"]))[0]["skipped"] == "budget spent"
 
 
+def test_a_failing_case_is_listed_and_the_others_run(monkeypatch):
+    def rockfall(size, steps, batch_size):
+        if size > 100:
+            raise MemoryError("out of device memory")
+        return {"case": "rockfall", "size": size, "steps": steps, "run s": 1.0, "wall s": 2.0}
+
+    monkeypatch.setattr(dc, "run_rockfall", rockfall)
+    monkeypatch.setattr(dc, "run_pile", lambda size, steps: {"case": "pile", "size": size, "run s": 1.0, "wall s": 1.0})
+    rows = dc.run_cases(dc.parse(["--batches", "10", "1000", "--pile", "5", "--budget", "1000"]))
+    assert [r["size"] for r in rows] == [10, 1000, 5]
+    assert rows[1]["error"] == "MemoryError: out of device memory" and "run s" not in rows[1]
+    assert "run s" in rows[2]
+
+
 def test_json_and_table(stubbed, tmp_path, capsys):
     out = tmp_path / "check.json"
     dc.main(["--batches", "8", "--steps", "5", "--pile", "3", "--pile-steps", "4", "--note", "a smoke",
