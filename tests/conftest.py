@@ -7,6 +7,7 @@ import jax
 import pytest
 
 from jaxdda import programs
+from tests.interrupt import pytest_configure, pytest_keyboard_interrupt  # noqa: F401 (hooks: stop workers at once)
 
 # Compiled programs are shared through JAX's persistent compilation cache by every process
 # of a test run: both xdist workers, the notebooks' kernels and the CLI's subprocesses
