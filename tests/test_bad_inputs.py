@@ -24,6 +24,8 @@ from jaxdda.scene import cutting
 from jaxdda.scene.io import toml_text
 from jaxdda.scene.loader import load_scene
 
+pytestmark = pytest.mark.smoke  # the whole module is cheap: `pytest -m smoke`
+
 NAN, INF = math.nan, math.inf
 DOC = Path(__file__).resolve().parents[1] / "docs" / "bad-inputs.md"
 

@@ -7,6 +7,8 @@ import pytest
 import jaxdda
 from jaxdda import SceneError
 
+pytestmark = pytest.mark.smoke  # the whole module is cheap: `pytest -m smoke`
+
 
 def builder():
     return jaxdda.SceneBuilder(dt=0.01, gravity=(0.0, -10.0))

@@ -72,6 +72,7 @@ def test_an_optax_optimizer_descends_the_reverse_mode_gradient():
     _recovered(cal, {"friction": 0.3})
 
 
+@pytest.mark.smoke
 @pytest.mark.parametrize("fit, initial, words", [
     (["viscosity"], None, ["viscosity", "fit items are"]),
     (["friction:granite"], None, ["granite", "unknown material"]),

@@ -3,6 +3,7 @@ import dataclasses
 
 import jax
 import numpy as np
+import pytest
 
 import jaxdda
 from jaxdda.simulate import with_capacity
@@ -84,6 +85,7 @@ def _boxes(n_side, rng):
     return np.concatenate([lo, walls_lo]), np.concatenate([hi, walls_hi])
 
 
+@pytest.mark.smoke
 def test_grid_broad_phase_is_exact_and_linear():
     from jaxdda.contact.broadphase import candidate_count, grid_pairs
 

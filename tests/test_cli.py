@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from jaxdda.cli import main
 
@@ -115,6 +116,7 @@ def fails(argv, capsys) -> str:
     return captured.err
 
 
+@pytest.mark.smoke
 def test_errors_exit_2_with_a_message(tmp_path, capsys):
     assert "jaxdda: error: unknown example 'paper-9.9'" in fails(["run", "paper-9.9"], capsys)
     assert "no such scene file" in fails(["run", str(tmp_path / "absent.json")], capsys)
@@ -131,12 +133,14 @@ def test_errors_exit_2_with_a_message(tmp_path, capsys):
     fails([], capsys)
 
 
+@pytest.mark.smoke
 def test_list(capsys):
     assert main(["list"]) == 0
     text = capsys.readouterr().out
     assert "paper-7.1" in text and "paper-7.5" in text and "pendulum" in text
 
 
+@pytest.mark.smoke
 def test_python_dash_m():
     result = subprocess.run([sys.executable, "-m", "jaxdda", "run", "no-such-example"], cwd=ROOT,
                             capture_output=True, text=True, env={**os.environ, "PYTHONPATH": str(ROOT)})
@@ -144,6 +148,7 @@ def test_python_dash_m():
     assert result.stderr.startswith("jaxdda: error: unknown example")
 
 
+@pytest.mark.smoke
 def test_a_closed_pipe_stops_the_listing_quietly():
     """``jaxdda list | head -3``: the reader is gone before the listing is written."""
     read_end, write_end = os.pipe()
@@ -157,10 +162,17 @@ def test_a_closed_pipe_stops_the_listing_quietly():
     assert result.stderr == ""
 
 
-def test_export_an_example_and_run_the_file(tmp_path, capsys):
+@pytest.mark.smoke
+def test_export_an_example(tmp_path, capsys):
     toml = tmp_path / "pull.toml"
     assert main(["export", "paper-7.8", str(toml)]) == 0
     assert "[[loads]]" in toml.read_text()
+    assert "unknown example 'paper-9.9'" in fails(["export", "paper-9.9", str(toml)], capsys)
+
+
+def test_export_an_example_and_run_the_file(tmp_path, capsys):
+    toml = tmp_path / "pull.toml"
+    assert main(["export", "paper-7.8", str(toml)]) == 0
     assert main(["run", str(toml), "--steps", "2", "--csv", str(tmp_path / "csv"), "--report", str(tmp_path / "pics"),
                  "--quiet"]) == 0
     assert "paper-7.8: 2 bodies, 2 steps" in capsys.readouterr().out
@@ -168,9 +180,9 @@ def test_export_an_example_and_run_the_file(tmp_path, capsys):
                                                                    "paths.png"]
     table = np.genfromtxt(tmp_path / "csv" / "paper-7.8_loads.csv", delimiter=",", names=True)
     np.testing.assert_array_equal(table["load0_fx"], [1000.0] * 3)  # the example's pull
-    assert "unknown example 'paper-9.9'" in fails(["export", "paper-9.9", str(toml)], capsys)
 
 
+@pytest.mark.smoke
 def test_ntdda_files_convert_to_a_scene_file(tmp_path, capsys):
     from jaxdda.scene.loader import load_scene
 

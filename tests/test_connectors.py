@@ -128,6 +128,7 @@ def test_cantilevered_beam_deflects_as_a_timoshenko_beam(shear_modulus):
     assert abs(axial) < 2 * load * deflection / length  # the load's share along the turned chord
 
 
+@pytest.mark.smoke
 @pytest.mark.parametrize("call, message", [
     (lambda sb: sb.add_spring(0, 1, (0.0, 1.0), (0.5, 0.0), stiffness=10.0), "at_b"),
     (lambda sb: sb.add_spring(0, 1, (0.0, 3.0), (0.0, 0.0), stiffness=10.0), "at_a"),

@@ -125,6 +125,7 @@ def test_halve_converges_every_step_as_runs_at_dt_over_2(scene, reported, halved
     assert np.diff(total).max() <= 64 * np.finfo(float).eps * total[0]
 
 
+@pytest.mark.smoke
 def test_bad_options_are_named(scene):
     with pytest.raises(ValueError, match="on_nonconvergence must be one of"):
         jaxdda.simulate(scene, 1, on_nonconvergence="retry")

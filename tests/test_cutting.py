@@ -10,6 +10,7 @@ from jaxdda.scene.cutting import BOUNDARY, JointSet, cut_blocks
 RECT = np.array([(0.0, 0.0), (4.0, 0.0), (4.0, 3.0), (0.0, 3.0)])
 
 
+@pytest.mark.smoke
 def test_two_through_joints_make_four_blocks():
     blocks = cut_blocks(RECT, [[(2, -1), (2, 4)], [(-1, 1), (5, 1)]])
     assert sorted(round(b.area, 12) for b in blocks) == [2.0, 2.0, 4.0, 4.0]
@@ -19,6 +20,7 @@ def test_two_through_joints_make_four_blocks():
         assert geometry.polygon_properties(b.vertices)[0] > 0  # counter-clockwise
 
 
+@pytest.mark.smoke
 def test_a_joint_ending_inside_a_block_cuts_nothing():
     blocks = cut_blocks(RECT, [[(2, -1), (2, 1.5)], [(1, 1), (3, 2)]])
     assert len(blocks) == 1
@@ -26,12 +28,14 @@ def test_a_joint_ending_inside_a_block_cuts_nothing():
     assert (blocks[0].edge_lines == BOUNDARY).all()
 
 
+@pytest.mark.smoke
 def test_concave_boundary():
     ell = [(0, 0), (3, 0), (3, 1), (1, 1), (1, 3), (0, 3)]
     blocks = cut_blocks(ell, [[(-1, 0.5), (4, 0.5)], [(-1, 2), (4, 2)]])
     assert [round(b.area, 12) for b in blocks] == [2.5, 1.5, 1.0]
 
 
+@pytest.mark.smoke
 def test_orthogonal_persistent_sets_make_a_grid():
     """Sets at 0 and 90 degrees with spacing 1, offset 0.5 about the centre (2, 1.5): rows
     cut at y = 1, 2 and columns at x = 0.5, 1.5, 2.5, 3.5: 3 x 5 blocks."""
@@ -42,6 +46,7 @@ def test_orthogonal_persistent_sets_make_a_grid():
     assert sorted(round(b.area, 12) for b in blocks) == [0.5] * 6 + [1.0] * 9
 
 
+@pytest.mark.smoke
 @pytest.mark.parametrize("sets", [
     [JointSet(dip=30.0, spacing=0.7), JointSet(dip=120.0, spacing=0.9)],
     [JointSet(dip=10.0, spacing=0.6, trace=2.0, bridge=0.8), JointSet(dip=95.0, spacing=0.8, offset=0.1)],
@@ -57,6 +62,7 @@ def test_joint_sets_tile_the_boundary(sets):
         assert ((b.edge_lines == BOUNDARY) | ((b.edge_lines >= 0) & (b.edge_lines < len(lines)))).all()
 
 
+@pytest.mark.smoke
 def test_bad_input_is_named():
     with pytest.raises(SceneError, match="the boundary is not a valid polygon"):
         cut_blocks([(0, 0), (1, 1), (1, 0), (0, 1)], [])

@@ -60,6 +60,7 @@ def test_free_block_keeps_momentum_and_zero_stress():
     assert np.abs(run.stress).max() == 0.0
 
 
+@pytest.mark.smoke
 @pytest.mark.parametrize("kwargs, words", [
     ({"young": 0.0}, ["young", "> 0"]),
     ({"young": -1e9}, ["young"]),

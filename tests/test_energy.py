@@ -142,6 +142,7 @@ def handmade():
     return sb.build()
 
 
+@pytest.mark.smoke
 def test_strain_and_connector_energy(handmade):
     n, s, tau, delta, phi = handmade.n_bodies, 2e3, 1e3, 0.1, 0.05
     centroid = np.repeat(np.asarray(handmade.state.centroid)[None], 3, 0)

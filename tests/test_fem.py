@@ -197,6 +197,7 @@ def test_gradient_through_a_meshed_block_is_the_closed_form():
     np.testing.assert_allclose(grad, -F * H / (E ** 2 * W) / 3, rtol=1e-9)
 
 
+@pytest.mark.smoke
 def test_bad_meshes_name_the_triangle_or_node():
     nodes = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]
     cases = [

@@ -258,6 +258,7 @@ def builder_with_bodies():
     return sb
 
 
+@pytest.mark.smoke
 @pytest.mark.parametrize("body, at, match", [
     (7, (0.5, 0.5), r"fixed point 0: field 'body' must be the index of an added body"),
     (True, (0.5, 0.5), r"fixed point 0: field 'body'"),
@@ -271,6 +272,7 @@ def test_bad_fixed_points(body, at, match):
         builder_with_bodies().add_fixed_point(body, at)
 
 
+@pytest.mark.smoke
 def test_allowed_fixed_points():
     sb = builder_with_bodies()
     assert sb.add_fixed_point(2, (4.5, 0.5)) == 0  # on a fixed body: allowed, changes nothing
@@ -287,6 +289,7 @@ def test_allowed_fixed_points():
     assert list(np.asarray(sb.build().model.fixed)) == [True, False, True, False]
 
 
+@pytest.mark.smoke
 def test_fixed_point_on_a_mesh_is_a_fixed_node():
     nodes = [(0, 0), (1, 0), (1, 1), (0, 1)]
     triangles = [(0, 1, 2), (0, 2, 3)]

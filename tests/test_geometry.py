@@ -11,6 +11,8 @@ from jaxdda.bodies.geometry import (
     simple_polygon_problem,
 )
 
+pytestmark = pytest.mark.smoke  # the whole module is cheap: `pytest -m smoke`
+
 
 def rect(x0, y0, w, h):
     return np.array([[x0, y0], [x0 + w, y0], [x0 + w, y0 + h], [x0, y0 + h]], float)

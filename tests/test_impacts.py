@@ -177,6 +177,7 @@ def test_the_energy_bound_holds_a_sticking_corner_to_its_energy():
     assert bounded > 0
 
 
+@pytest.mark.smoke
 def test_energy_bound_has_a_finite_derivative_where_it_is_idle():
     # Rows with no compression and no kick (a = b = c = 0: the bound's discriminant is 0)
     # take s = 1; reverse mode through them must stay finite (sqrt'(0) is infinite).

@@ -14,6 +14,8 @@ from jaxdda.scene.io import save_scene, scene_to_dict, toml_text
 from jaxdda.scene.loader import load_scene, scene_from_dict
 from jaxdda.types import DISK, POLYGON, RING
 
+pytestmark = pytest.mark.smoke  # the whole module is cheap: `pytest -m smoke`
+
 SCENE_TOML = """
 name = "everything"
 

@@ -6,6 +6,8 @@ from jaxdda.bodies import geometry
 from jaxdda.errors import SceneError
 from jaxdda.scene.mesh import check_mesh, mesh_polygon, rectangle_mesh
 
+pytestmark = pytest.mark.smoke  # the whole module is cheap: `pytest -m smoke`
+
 SQUARE = [(0, 0), (2, 0), (2, 2), (0, 2)]
 L_SHAPE = [(0, 0), (3, 0), (3, 1), (1, 1), (1, 3), (0, 3)]  # concave, area 5
 STAR = [(np.cos(a) * r, np.sin(a) * r) for a, r in

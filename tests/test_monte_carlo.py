@@ -199,6 +199,7 @@ def test_the_step_calls_no_lapack_kernel():
     assert "custom_call" not in text
 
 
+@pytest.mark.smoke
 @pytest.mark.parametrize("kwargs, message", [
     (dict(velocity=np.zeros((3, 5))), "velocity must be"),
     (dict(velocity=np.full((2, 2), np.nan)), "not finite"),

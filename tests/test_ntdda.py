@@ -10,6 +10,8 @@ import pytest
 from jaxdda.errors import SceneError
 from jaxdda.scene.ntdda import read_ntdda
 
+pytestmark = pytest.mark.smoke  # the whole module is cheap: `pytest -m smoke`
+
 DATA = Path(__file__).parent / "data" / "ntdda"
 
 

@@ -29,6 +29,7 @@ def _drop_and_block(height: float):
     return sb.build().with_options(**OFF)
 
 
+@pytest.mark.smoke
 def test_options_are_static_and_checked():
     scene = _drop_and_block(0.45)
     assert scene.model.options == StepOptions(**OFF)

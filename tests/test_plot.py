@@ -45,6 +45,7 @@ def test_into_given_axes_with_title():
     assert ax.get_title() == "hello"
 
 
+@pytest.mark.smoke
 def test_missing_matplotlib_message(monkeypatch):
     monkeypatch.setitem(sys.modules, "matplotlib", None)
     with pytest.raises(ImportError, match=r'pip install "jaxdda\[plot\]"'):
@@ -161,6 +162,7 @@ def test_report_writes_four_pngs(tmp_path):
         assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and p.stat().st_size > 1000
 
 
+@pytest.mark.smoke
 @pytest.mark.parametrize("draw", [plot_paths, plot_forces, plot_energy, plot_force_network])
 def test_charts_missing_matplotlib_message(monkeypatch, draw):
     monkeypatch.setitem(sys.modules, "matplotlib", None)

@@ -6,6 +6,8 @@ import pytest
 
 from jaxdda import programs
 
+pytestmark = pytest.mark.smoke  # the whole module is cheap: `pytest -m smoke`
+
 
 def _program():
     def f(x):  # several kernels (a loop, a sort, reductions), so its maps are many

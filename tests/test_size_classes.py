@@ -5,6 +5,7 @@ import dataclasses
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 import jaxdda
 from jaxdda.contact.detect import detect
@@ -93,6 +94,7 @@ def test_scenes_of_one_size_class_share_one_program():
         assert run.centroid.shape == (4, n + 1, 2)
 
 
+@pytest.mark.smoke
 def test_size_classes_round_up_by_at_most_a_quarter():
     xs = np.arange(1, 5000)
     classes = np.array([size_class(x) for x in xs])

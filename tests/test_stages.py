@@ -120,6 +120,7 @@ def test_gap_change_is_exact_for_a_translation_and_a_turn(scene, staged):
             np.testing.assert_allclose(float(change[k]), math.hypot(1.002, 0.07) - 1.002, atol=1e-14)
 
 
+@pytest.mark.smoke
 def test_warm_start_takes_the_force_of_the_same_feature_pair():
     key = jnp.asarray([7, 3, -1])
     force = jnp.asarray([[1.0, 2.0, 3.0], [4.0, 5.0, 6.0], [0.0, 0.0, 0.0]])

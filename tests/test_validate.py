@@ -28,6 +28,7 @@ def depth(a, b):
 
 
 # ---------------------------------------------------------------- field checks
+@pytest.mark.smoke
 def test_check_finite():
     check_finite("body 0 (disk)", "radius", 1.0)
     check_finite("body 0 (disk)", "center", [1.0, 2.0])
@@ -39,6 +40,7 @@ def test_check_finite():
         check_finite("body 1", "density", "heavy")
 
 
+@pytest.mark.smoke
 def test_check_positive():
     check_positive("body 2 (ring)", "inner_radius", 0.5)
     for bad in (0.0, -1.0):
@@ -51,6 +53,7 @@ def test_check_positive():
 
 
 # ---------------------------------------------------------------- circles
+@pytest.mark.smoke
 def test_disk_disk():
     assert depth(disk(0, 0, 1), disk(3, 0, 2)) < TOUCH
     assert depth(disk(0, 0, 1), disk(0.6, 0.8 * 3.75, 2)) < TOUCH * 10
@@ -59,6 +62,7 @@ def test_disk_disk():
     assert depth(disk(0, 0, 10), disk(1, 0, 1)) > 1  # small disk inside a big one
 
 
+@pytest.mark.smoke
 def test_disk_ring():
     assert depth(ring(0, 0, 150, 100), disk(60, 0, 40)) < TOUCH  # touching the hole from inside
     assert depth(ring(0, 0, 150, 100), disk(36, 48, 40)) < TOUCH
@@ -71,6 +75,7 @@ def test_disk_ring():
     assert depth(ring(0, 0, 150, 100), disk(0, 0, 500)) > 10  # disk covering the ring
 
 
+@pytest.mark.smoke
 def test_ring_ring():
     assert depth(ring(0, 0, 150, 100), ring(50, 0, 50, 30)) < TOUCH  # inside the hole, touching
     assert depth(ring(0, 0, 150, 100), ring(51, 0, 50, 30)) == pytest.approx(1.0)
@@ -83,6 +88,7 @@ def test_ring_ring():
 
 
 # ---------------------------------------------------------------- polygon / circle
+@pytest.mark.smoke
 def test_disk_polygon():
     sq = rect(0, 0, 2, 2)
     assert depth(sq, disk(1, 3, 1)) < TOUCH  # resting on the top edge
@@ -95,6 +101,7 @@ def test_disk_polygon():
     assert depth(rect(0, 0, 2, 2), disk(1, 1.5, 0.5)) == pytest.approx(1.0)  # inside, touching
 
 
+@pytest.mark.smoke
 def test_polygon_concave_notch_disk():
     u = ("polygon", np.array([[0, 0], [3, 0], [3, 3], [2, 3], [2, 1], [1, 1], [1, 3], [0, 3]], float))
     assert depth(u, disk(1.5, 2, 0.5)) < TOUCH  # in the slot, touching both walls
@@ -102,6 +109,7 @@ def test_polygon_concave_notch_disk():
     assert depth(u, disk(1.5, 1.5, 0.5)) < TOUCH  # also touching the bottom of the slot
 
 
+@pytest.mark.smoke
 def test_polygon_ring():
     r = ring(0, 0, 150, 100)
     assert depth(r, rect(-10, -10, 20, 20)) == 0.0  # loose in the hole
@@ -115,6 +123,7 @@ def test_polygon_ring():
 
 
 # ---------------------------------------------------------------- polygon / polygon
+@pytest.mark.smoke
 def test_polygons_touching():
     assert depth(rect(0, 0, 1, 1), rect(0, 1, 1, 1)) < TOUCH  # block standing on a block
     assert depth(rect(0, 0, 1, 1), rect(0.5, 1, 1, 1)) < TOUCH  # shifted, partial shared edge
@@ -126,6 +135,7 @@ def test_polygons_touching():
     assert depth(big, rect(-2, 0, 4, 4)) < 1e-9 * 2e4
 
 
+@pytest.mark.smoke
 def test_polygons_overlapping():
     assert depth(rect(0, 0, 1, 1), rect(0, 0.9, 1, 1)) == pytest.approx(0.1)
     assert depth(rect(0, 0, 1, 1), rect(0.5, 0.5, 1, 1)) == pytest.approx(0.5)
@@ -136,11 +146,13 @@ def test_polygons_overlapping():
     assert depth(rect(0, 0, 1, 1), rect(0.5, 0, 1, 1)) == pytest.approx(0.5)  # same height, shifted
 
 
+@pytest.mark.smoke
 def test_cross_of_thin_rectangles():
     # No vertex of either lies inside the other.
     assert depth(rect(-5, -0.1, 10, 0.2), rect(-0.1, -5, 0.2, 10)) == pytest.approx(0.1)
 
 
+@pytest.mark.smoke
 def test_concave_polygons_interlocking():
     u = ("polygon", np.array([[0, 0], [3, 0], [3, 3], [2, 3], [2, 1], [1, 1], [1, 3], [0, 3]], float))
     assert depth(u, rect(1, 1, 1, 3)) < TOUCH  # a key exactly filling the slot
@@ -150,6 +162,7 @@ def test_concave_polygons_interlocking():
 
 
 # ---------------------------------------------------------------- scene check
+@pytest.mark.smoke
 def test_check_no_interpenetration():
     shapes = [rect(0, 0, 1, 1), rect(0, 1, 1, 1), disk(1.5, 0.5, 0.5), ring(10, 10, 5, 3), disk(10, 10, 3)]
     labels = [f"body {k}" for k in range(len(shapes))]

@@ -6,6 +6,8 @@ import pytest
 
 import jaxdda
 
+pytestmark = pytest.mark.smoke  # one small run, the program that `pytest -m smoke` compiles
+
 G = 2500.0 * math.pi * 10.0 ** 2 * 10.0  # weight of one disk, 7 853 981.633974483 N
 PAPER_ERROR = 2.2e-3  # N, the paper's largest absolute error (Table 1)
 
