@@ -96,6 +96,7 @@ def test_a_scene_file_edited_in_its_parameters_reuses_the_programs(tmp_path, sto
     assert again["summary"] != first["summary"]  # it did run the edited scene
 
 
+@pytest.mark.smoke
 def test_off_turns_the_cache_off(monkeypatch):
     for word in ("off", "0", "false", "No"):
         monkeypatch.setenv("JAXDDA_CACHE", word)
@@ -106,6 +107,7 @@ def test_off_turns_the_cache_off(monkeypatch):
     assert done.stdout.split() == ["False", "None"]
 
 
+@pytest.mark.smoke
 def test_the_folder_follows_the_environment(tmp_path, monkeypatch):
     monkeypatch.delenv("JAX_COMPILATION_CACHE_DIR", raising=False)
     monkeypatch.delenv("JAXDDA_CACHE", raising=False)
@@ -120,6 +122,7 @@ def test_the_folder_follows_the_environment(tmp_path, monkeypatch):
     assert cache.folder() == tmp_path / "jax"
 
 
+@pytest.mark.smoke
 def test_the_cache_command_shows_and_clears(tmp_path, monkeypatch, capsys):
     monkeypatch.delenv("JAX_COMPILATION_CACHE_DIR", raising=False)
     folder = tmp_path / "xla"

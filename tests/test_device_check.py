@@ -10,6 +10,8 @@ import pytest
 
 from jaxdda.montecarlo import MonteCarlo
 
+pytestmark = pytest.mark.smoke  # no compilation
+
 PATH = pathlib.Path(__file__).resolve().parents[1] / "experiments" / "device_check.py"
 spec = importlib.util.spec_from_file_location("device_check", PATH)
 dc = importlib.util.module_from_spec(spec)

@@ -30,6 +30,7 @@ def _outside_pytest() -> dict:
     return dict(env, PYTHONPATH=str(ROOT))
 
 
+@pytest.mark.smoke
 @pytest.mark.parametrize("stop", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "terminated"])
 def test_stopping_the_run_ends_its_workers_at_once(tmp_path, stop):
     mark = tmp_path / "started"

@@ -9,6 +9,8 @@ import pytest
 
 import jaxdda.viz
 
+pytestmark = pytest.mark.smoke  # no compilation
+
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 MAX_IMAGE_BYTES = 200_000
