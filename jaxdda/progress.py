@@ -30,8 +30,9 @@ class Progress:
         rate = self.done / max(time.perf_counter() - self.start, 1e-9)
         filled = int(30 * self.done / max(self.total, 1))
         extra = "".join(f", {k} {v}" for k, v in postfix.items())
+        speed = f"{rate:,.0f}" if rate >= 10 else f"{rate:.2g}"  # a slow unit: a fit's iteration
         sys.stderr.write(f"\r[{'#' * filled}{'.' * (30 - filled)}] {self.done}/{self.total} {self.unit} "
-                         f"({rate:,.0f} {self.unit}/s{extra})")
+                         f"({speed} {self.unit}/s{extra})")
         sys.stderr.flush()
 
     def close(self) -> None:
