@@ -36,10 +36,14 @@ def test_stopping_the_run_ends_its_workers_at_once(tmp_path, stop):
     mark = tmp_path / "started"
     (tmp_path / "test_long.py").write_text(
         f"import pathlib, time\ndef test_long():\n    pathlib.Path({str(mark)!r}).touch()\n    time.sleep({LONG})\n")
-    run = subprocess.Popen([sys.executable, "-m", "pytest", "-p", "tests.interrupt", "-n", "1", "-p", "no:cacheprovider",
-                            "-q", "--rootdir", str(tmp_path), str(tmp_path)], cwd=tmp_path,
-                           env=_outside_pytest(), stdout=subprocess.DEVNULL,
-                           stderr=subprocess.DEVNULL, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    # as a terminal starts it: SIGINT handled (a worker of this run has it ignored, and a
+    # child inherits that); no preexec_fn, which would fork a process that has JAX's threads
+    argv = ["-p", "tests.interrupt", "-n", "1", "-p", "no:cacheprovider", "-q", "--rootdir", str(tmp_path),
+            str(tmp_path)]
+    start_pytest = ("import signal, sys, pytest; signal.signal(signal.SIGINT, signal.default_int_handler); "
+                    f"sys.exit(pytest.main({argv!r}))")
+    run = subprocess.Popen([sys.executable, "-c", start_pytest], cwd=tmp_path, env=_outside_pytest(),
+                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         while not mark.exists():
             assert run.poll() is None
