@@ -93,7 +93,7 @@ def monte_carlo(scene: Scene | Sequence[Scene], steps: int, *, velocity=None, bo
       batch_size: scenarios per batch (rounded up to a multiple of the devices); default
         as many as fit ``BATCH_BUDGET`` bodies-plus-contact-slots per device.
       chunk: steps per compiled chunk (one compilation serves any ``steps``).
-      progress: show a progress bar (tqdm when installed).
+      progress: show a progress bar (tqdm when installed): scenario-steps, scenarios done.
       devices: the devices to shard batches over (default ``jax.local_devices()``).
       trajectories: also keep centroids, rotations and velocities every ``save_every`` steps.
     """
@@ -133,6 +133,7 @@ def monte_carlo(scene: Scene | Sequence[Scene], steps: int, *, velocity=None, bo
     results = []
     try:
         for lo in range(0, b, size):
+            bar.update(0, scenarios=f"{lo}/{b} done")
             idx = np.minimum(np.arange(lo, lo + size), b - 1)  # the last batch repeats its last scenario
             take = lambda tree: jax.tree.map(lambda x: np.asarray(x)[idx], tree)
             batch_model = take(model) if many else model
@@ -141,6 +142,7 @@ def monte_carlo(scene: Scene | Sequence[Scene], steps: int, *, velocity=None, bo
             if not many:  # grown buffers carry over to the next batch
                 model = dataclasses.replace(model, capacity=model_used.capacity)
             results.append(jax.tree.map(lambda x: x[: min(size, b - lo)], out))
+        bar.update(0, scenarios=f"{b}/{b} done")
     finally:
         bar.close()
     acc, traj = jax.tree.map(lambda *xs: np.concatenate(xs), *[r[0] for r in results]), None

@@ -6,12 +6,12 @@ import time
 
 
 class Progress:
-    """``update(n, **postfix)`` after each unit of work; ``close()`` at the end.
-    ``enabled=False`` prints nothing."""
+    """``update(n, **postfix)`` after each unit of work; ``close()`` at the end. A postfix
+    item stays shown until updated. ``enabled=False`` prints nothing."""
 
     def __init__(self, total: int, unit: str, enabled: bool = True):
         self.total, self.unit, self.enabled = total, unit, enabled
-        self.done, self.start, self._bar = 0, time.perf_counter(), None
+        self.done, self.start, self._bar, self.postfix = 0, time.perf_counter(), None, {}
         if enabled:
             try:
                 from tqdm.auto import tqdm
@@ -21,6 +21,7 @@ class Progress:
 
     def update(self, n: int, **postfix) -> None:
         self.done += n
+        postfix = self.postfix = {**self.postfix, **postfix}
         if not self.enabled:
             return
         if self._bar is not None:

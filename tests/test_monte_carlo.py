@@ -121,7 +121,7 @@ def test_a_second_study_of_the_batch_size_compiles_nothing_and_shows_progress(in
     assert compiled.compiles == 0
     np.testing.assert_allclose(again["runout"][::-1], sliding["runout"], rtol=1e-12, atol=1e-12)
     bar = capsys.readouterr().err
-    assert f"{4 * STEPS}/{4 * STEPS}" in bar and "scenario-steps" in bar
+    assert f"{4 * STEPS}/{4 * STEPS}" in bar and "scenario-steps" in bar and "scenarios 4/4 done" in bar
 
 
 def test_exceedance_curve(sliding):
