@@ -19,7 +19,9 @@ import numpy as np
 import pytest
 
 import jaxdda
+from jaxdda import cli
 from jaxdda.errors import ConvergenceError, NonConvergenceWarning
+from jaxdda.scene.io import save_scene
 
 STEPS, CHUNK, MAX_ITER = 30, 30, 225
 
@@ -78,6 +80,15 @@ def test_continue_warns_once_with_count_worst_residual_and_advice(scene, reporte
     assert f"worst relative residual {worst:.3g} against tol {float(reported.params.tol):.3g}" in message
     for advice in ("on_nonconvergence", "tol", "max_iter", "dt"):
         assert advice in message
+
+
+def test_the_cli_warns_too(tmp_path, reported, capsys):
+    path = tmp_path / "thrown.toml"
+    save_scene(thrown_block(), path, steps=STEPS)
+    path.write_text(path.read_text().replace("max_iter = 20000", f"max_iter = {MAX_ITER}"))
+    with pytest.warns(NonConvergenceWarning, match=f"^{int((~reported.step_converged).sum())} of {STEPS} steps"):
+        assert cli.main(["run", str(path), "--chunk", str(CHUNK), "--quiet"]) == 0
+    assert "converged         NO" in capsys.readouterr().out
 
 
 def test_a_run_that_converges_or_halves_does_not_warn(scene):
