@@ -73,14 +73,17 @@ class Trajectory:
         force, and the bending moments at ends a and b (beams; connectors.connector_forces)."""
         return self.info.connector_force
 
-    def vertices(self) -> np.ndarray:
-        """(S+1, bodies, V, 2): polygon vertices in the world frame at each step (padding
-        entries and those of disks and rings are meaningless)."""
-        stretch = np.broadcast_to(np.eye(2), self.rotation.shape + (2, 2)) if self.stretch is None else self.stretch
+    def vertices(self, frames=slice(None)) -> np.ndarray:
+        """(F, bodies, V, 2): polygon vertices in the world frame at the saved states
+        ``frames`` (a slice or index array; default all S+1), padding entries and those of
+        disks and rings meaningless."""
+        rotation, centroid = np.asarray(self.rotation)[frames], np.asarray(self.centroid)[frames]
+        stretch = np.broadcast_to(np.eye(2), rotation.shape + (2, 2)) if self.stretch is None else \
+            np.asarray(self.stretch)[frames]
         local = np.einsum("snij,nvj->snvi", stretch, np.asarray(self.scene.model.local_vertices))
-        c, s = np.cos(self.rotation)[..., None], np.sin(self.rotation)[..., None]
+        c, s = np.cos(rotation)[..., None], np.sin(rotation)[..., None]
         x, y = local[..., 0], local[..., 1]
-        return self.centroid[:, :, None, :] + np.stack([c * x - s * y, s * x + c * y], -1)
+        return centroid[:, :, None, :] + np.stack([c * x - s * y, s * x + c * y], -1)
 
     def material_points(self, body, local) -> np.ndarray:
         """(S+1, P, 2): world paths of material points given per point by ``body`` (P,)

@@ -12,8 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from jaxdda.energy import energy
-from jaxdda.viz.plot import (_import_matplotlib, body_colors, body_shapes, connector_lines, figure_size, new_axes,
-                             scene_box)
+from jaxdda.viz.plot import _import_matplotlib, body_colors, body_shapes, connector_lines, new_axes, scene_axes
 
 NETWORK_LABEL = "force network"  # the label of plot_force_network's LineCollection
 
@@ -98,7 +97,7 @@ def _draw_bodies(ax, traj, frame: int, *, alpha: float, outline: float = 0.8):
     """The bodies at saved state ``frame``, filled with ``alpha`` (fixed ones grey)."""
     _, patches, collections = _import_matplotlib()
     model = traj.scene.model
-    verts = None if traj.stretch is None else traj.vertices()[frame]
+    verts = None if traj.stretch is None else traj.vertices([frame])[0]
     shapes, _ = body_shapes(patches, model, np.asarray(traj.centroid[frame], float),
                             np.asarray(traj.rotation[frame], float), verts)
     colors = body_colors(model)
@@ -112,7 +111,7 @@ def plot_paths(traj, path=None, *, bodies=None, ax=None):
     ``bodies``: indices of the bodies to track (default: every free body, and each
     meshed block as a whole). Returns the Figure."""
     _, _, collections = _import_matplotlib()
-    fig, ax = new_axes(ax, path, figure_size(*scene_box(traj)))
+    fig, ax = scene_axes(traj, ax, path)
     model = traj.scene.model
     _draw_bodies(ax, traj, 0, alpha=0.2)
     if np.asarray(model.connector_a).shape[0]:
@@ -226,7 +225,7 @@ def plot_force_network(traj, path=None, *, step=-1, ax=None, max_width=6.0):
     s = _n_steps(traj)
     index = (step % s) if s else 0
     frame = index + 1 if s else 0
-    fig, ax = new_axes(ax, path, figure_size(*scene_box(traj, frame)))
+    fig, ax = scene_axes(traj, ax, path, [frame])
     _draw_bodies(ax, traj, frame, alpha=0.12, outline=0.5)
     model = traj.scene.model
     if np.asarray(model.connector_a).shape[0]:  # connectors, thin and grey, for orientation

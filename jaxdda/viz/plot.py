@@ -65,24 +65,12 @@ def connector_lines(model, centroid: np.ndarray, rotation: np.ndarray) -> list:
 
 def scene_box(traj, frames=slice(None)) -> tuple[np.ndarray, np.ndarray]:
     """(low, high) corners of the box that holds every body (polygon vertices, disk and
-    ring rims) at the saved states ``frames`` (an index or slice), 5 % wider each side."""
-    model, n = traj.scene.model, traj.scene.n_bodies
-
-    def pick(a):
-        return np.asarray(a, float)[frames].reshape((-1, n) + np.shape(a)[2:])
-
-    centroid, rotation = pick(traj.centroid), pick(traj.rotation)[..., None]
-    local = np.asarray(model.local_vertices, float)[None]
-    if traj.stretch is not None:
-        local = np.einsum("fnij,nvj->fnvi", pick(traj.stretch), local[0])
-    x, y = local[..., 0], local[..., 1]
-    corners = centroid[:, :, None] + np.stack([np.cos(rotation) * x - np.sin(rotation) * y,
-                                               np.sin(rotation) * x + np.cos(rotation) * y], -1)
-    kind = np.asarray(model.kind)
-    polygon = np.asarray(model.vertex_mask, bool) & (kind == POLYGON)[:, None]
-    rim = np.asarray(model.radius, float)[kind != POLYGON, None]
-    round_centroid = centroid[:, kind != POLYGON]
-    points = np.concatenate([corners[:, polygon], round_centroid - rim, round_centroid + rim], 1).reshape(-1, 2)
+    ring rims) at the saved states ``frames`` (a slice or index array), 5 % wider each side."""
+    model = traj.scene.model
+    round_ = np.asarray(model.kind) != POLYGON
+    corners = traj.vertices(frames)[:, np.asarray(model.vertex_mask, bool) & ~round_[:, None]]
+    centroid, rim = np.asarray(traj.centroid, float)[frames][:, round_], np.asarray(model.radius, float)[round_, None]
+    points = np.concatenate([corners, centroid - rim, centroid + rim], 1).reshape(-1, 2)
     low, high = points.min(0), points.max(0)
     pad = 0.05 * (high - low)
     return low - pad, high + pad
@@ -114,6 +102,12 @@ def new_axes(ax=None, path=None, figsize=(7, 7)):
     return plt.subplots(figsize=figsize, layout="constrained")
 
 
+def scene_axes(traj, ax=None, path=None, frames=slice(None)):
+    """``new_axes`` for a picture of the scene: a new figure takes the shape of the bodies'
+    box over ``frames`` (``scene_box``, ``figure_size``)."""
+    return new_axes(ax, path, None if ax is not None else figure_size(*scene_box(traj, frames)))
+
+
 def _rotation(theta):
     c, s = np.cos(theta), np.sin(theta)
     return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
@@ -129,7 +123,7 @@ def plot_trajectory(traj, path=None, *, ax=None, title=None):
     Returns the matplotlib Figure.
     """
     figure, patches, collections = _import_matplotlib()
-    fig, ax = new_axes(ax, path, figure_size(*scene_box(traj)))
+    fig, ax = scene_axes(traj, ax, path)
 
     model = traj.scene.model
     fixed = np.asarray(model.fixed, bool)
