@@ -35,32 +35,27 @@ def folder() -> Path | None:
     return Path(base).expanduser() / "jaxdda" / "xla"
 
 
-def enable() -> Path | None:
+def enable() -> None:
     """Point JAX's compilation cache at ``folder()`` (called when jaxdda is imported).
     Every program is kept, however fast it compiled: a step's pieces are many and small."""
     path = folder()
     if path is None:
         jax.config.update("jax_enable_compilation_cache", False)
-        return None
+        return
     jax.config.update("jax_compilation_cache_dir", str(path))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
-    return path
 
 
-def size(path: Path | None = None) -> tuple[int, int]:
-    """(entries, bytes) in the cache folder."""
-    path = folder() if path is None else path
-    if path is None or not path.is_dir():
-        return 0, 0
-    files = [f for f in path.rglob("*") if f.is_file()]
+def size(path: Path) -> tuple[int, int]:
+    """(entries, bytes) in the cache folder ``path``."""
+    files = [f for f in path.rglob("*") if f.is_file()] if path.is_dir() else []
     return len(files), sum(f.stat().st_size for f in files)
 
 
-def clear(path: Path | None = None) -> tuple[int, int]:
-    """Delete the cache folder's contents; returns what was there (entries, bytes)."""
-    path = folder() if path is None else path
-    entries = size(path)
-    if path is not None and path.is_dir():
+def clear(path: Path) -> tuple[int, int]:
+    """Delete the cache folder ``path``; returns what it held (entries, bytes)."""
+    held = size(path)
+    if path.is_dir():
         shutil.rmtree(path)
-    return entries
+    return held
