@@ -26,7 +26,7 @@ from jaxdda.errors import CapacityError
 from jaxdda.progress import Progress
 from jaxdda.scene.builder import Scene
 from jaxdda.scene.padding import stack_scenes
-from jaxdda.scene.validate import check_params
+from jaxdda.scene.validate import check_counts, check_params
 from jaxdda.simulate import MAX_REGROW, with_capacity
 from jaxdda.step import step
 from jaxdda.types import Capacities, Params
@@ -97,9 +97,8 @@ def monte_carlo(scene: Scene | Sequence[Scene], steps: int, *, velocity=None, bo
       devices: the devices to shard batches over (default ``jax.local_devices()``).
       trajectories: also keep centroids, rotations and velocities every ``save_every`` steps.
     """
-    for name, v in (("steps", steps), ("chunk", chunk), ("save_every", save_every)):
-        if isinstance(v, bool) or int(v) != v or v < 1:
-            raise ValueError(f"{name} must be a positive integer, got {v!r}")
+    check_counts(steps=steps, chunk=chunk, save_every=save_every, **({} if batch_size is None else
+                                                                      {"batch_size": batch_size}))
     scenes = [scene] if isinstance(scene, Scene) else list(scene)
     if not scenes or not all(isinstance(s, Scene) for s in scenes):
         raise TypeError("scene must be a Scene or a non-empty sequence of Scenes")
@@ -122,8 +121,6 @@ def monte_carlo(scene: Scene | Sequence[Scene], steps: int, *, velocity=None, bo
 
     devices = list(jax.local_devices() if devices is None else devices)
     per_device = batch_size or max(1, BATCH_BUDGET // (model.n_bodies + model.capacity.contacts))
-    if batch_size is not None and (isinstance(batch_size, bool) or int(batch_size) != batch_size or batch_size < 1):
-        raise ValueError(f"batch_size must be a positive integer, got {batch_size!r}")
     size = min(per_device * (1 if batch_size else len(devices)), b)
     size = -(-size // len(devices)) * len(devices)
     mesh = Mesh(np.array(devices), ("batch",))

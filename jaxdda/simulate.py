@@ -14,7 +14,7 @@ from jaxdda.progress import Progress
 from jaxdda.scene.builder import Scene
 from jaxdda.scene.capacity import capacity_class
 from jaxdda.scene.padding import Shape, pad_scene, unpad_state
-from jaxdda.scene.validate import check_params
+from jaxdda.scene.validate import check_counts, check_params
 from jaxdda.step import step
 from jaxdda.types import Capacities, ContactReport, Model, Params, State, StepInfo
 
@@ -219,30 +219,14 @@ def simulate(scene: Scene, steps: int, *, params: Params | None = None, chunk: i
     With ``"continue"``, a run with steps that did not converge warns once
     (``NonConvergenceWarning``: their count, the worst residual and what to do).
     """
-    for name, value in (("steps", steps), ("chunk", chunk), ("save_every", save_every)):
-        if isinstance(value, bool) or int(value) != value or value < 1:
-            raise ValueError(f"{name} must be a positive integer, got {value!r}")
-    if on_nonconvergence not in ON_NONCONVERGENCE:
-        raise ValueError(f"on_nonconvergence must be one of {', '.join(map(repr, ON_NONCONVERGENCE))}, "
-                         f"got {on_nonconvergence!r}")
-    if isinstance(max_halvings, bool) or int(max_halvings) != max_halvings or max_halvings < 0:
-        raise ValueError(f"max_halvings must be a non-negative integer, got {max_halvings!r}")
+    check_counts(steps=steps, chunk=chunk, save_every=save_every)
+    _check_nonconvergence(on_nonconvergence, max_halvings)
     stop = on_nonconvergence != "continue"
-    params = scene.params if params is None else params
-    check_params(params)
-    model, state = scene.model, (scene.state if state is None else state)
-    if state.contact_key.shape[-1] != model.capacity.contacts:
-        model, state = with_capacity(model, state, dataclasses.replace(
-            model.capacity, contacts=max(model.capacity.contacts, state.contact_key.shape[-1])))
-    # The run is of the scene padded to its size class: scenes of similar size share one
-    # compiled program (a notebook's edited scene, a test suite's small scenes).
-    own = dataclasses.replace(scene, model=model, state=state, params=params)
-    shape = Shape.covering([own]).bucket()
-    model, state, params = jax.tree.map(jnp.asarray, pad_scene(own, shape))
-    start = state
-    length = int(chunk)
-    pieces, saved, converged, halvings, done, worst = [], [np.zeros(1, np.int64)], [], [], 0, 0.0
+    own, shape, model, state, params = _padded(scene, params, state)
+    start, length = state, int(chunk)
+    kept = _Kept(own, steps, save_every)
     bar = Progress(int(steps), "steps", steps > length if progress is None else bool(progress))
+    done = 0
     while done < steps:
         model, state, end, out, n_valid, grown = _run_grown(model, state, params, min(length, steps - done), length,
                                                             stop)
@@ -250,13 +234,7 @@ def simulate(scene: Scene, steps: int, *, params: Params | None = None, chunk: i
         ok = np.asarray(info.converged)[:n_valid]
         failed = stop and not ok.all()
         n_ok = int(np.argmin(ok)) if failed else n_valid  # with stop: the steps before the first failure
-        number = done + 1 + np.arange(n_ok)
-        keep = np.flatnonzero((number % save_every == 0) | (number == steps))
-        pieces.append(_own_bodies(jax.tree.map(lambda x: np.asarray(x)[keep], out), own))
-        saved.append(number[keep])
-        converged.append(ok[:n_ok])
-        worst = max(worst, float(np.max(np.asarray(info.residual)[:n_ok], where=~ok[:n_ok], initial=0.0)))
-        halvings.append(np.zeros(n_ok, np.int64))
+        kept.add(jax.tree.map(lambda x: np.asarray(x)[:n_ok], out), done + 1, ok[:n_ok], np.zeros(n_ok, np.int64))
         bar.update(n_ok, iterations=int(np.asarray(info.iterations)[:n_valid].max()))
         state, done = end, done + n_ok
         if grown is not None:
@@ -266,18 +244,58 @@ def simulate(scene: Scene, steps: int, *, params: Params | None = None, chunk: i
                 raise _convergence_error(info, n_ok, done + 1, state, params, 0)
             model, state, row, depth = _subdivide(model, state, params, length, 1, max_halvings, done + 1)
             done += 1
-            if done % save_every == 0 or done == steps:
-                pieces.append(_own_bodies(jax.tree.map(lambda x: np.asarray(x)[None], row), own))
-                saved.append(np.array([done]))
-            converged.append(np.ones(1, bool))
-            halvings.append(np.array([depth]))
+            kept.add(jax.tree.map(lambda x: np.asarray(x)[None], row), done, np.ones(1, bool), np.array([depth]))
             bar.update(1, iterations=int(row[-1].iterations))
     bar.close()
-    _warn_unconverged(np.concatenate(converged), worst, params)
+    converged = np.concatenate(kept.converged)
+    _warn_unconverged(converged, kept.worst, params)
     final, first = (jax.tree.map(jnp.asarray, unpad_state(s, own, shape)) for s in (state, start))
-    return dataclasses.replace(_assemble(scene, pieces, final, first), saved_steps=np.concatenate(saved),
-                               step_converged=np.concatenate(converged), params=own.params, capacity=model.capacity,
-                               halvings=np.concatenate(halvings))
+    return dataclasses.replace(_assemble(scene, kept.pieces, final, first), saved_steps=np.concatenate(kept.saved),
+                               step_converged=converged, params=own.params, capacity=model.capacity,
+                               halvings=np.concatenate(kept.halvings))
+
+
+def _check_nonconvergence(on_nonconvergence: str, max_halvings: int) -> None:
+    if on_nonconvergence not in ON_NONCONVERGENCE:
+        raise ValueError(f"on_nonconvergence must be one of {', '.join(map(repr, ON_NONCONVERGENCE))}, "
+                         f"got {on_nonconvergence!r}")
+    if isinstance(max_halvings, bool) or int(max_halvings) != max_halvings or max_halvings < 0:
+        raise ValueError(f"max_halvings must be a non-negative integer, got {max_halvings!r}")
+
+
+def _padded(scene: Scene, params: Params | None, state: State | None):
+    """(the scene run: its params and start state, contact memory re-padded to its
+    capacity; its size class; that scene padded to it as model, state, params). Scenes of
+    similar size share one compiled program (a notebook's edited scene, a suite's scenes)."""
+    params = scene.params if params is None else params
+    check_params(params)
+    model, state = scene.model, (scene.state if state is None else state)
+    if state.contact_key.shape[-1] != model.capacity.contacts:
+        model, state = with_capacity(model, state, dataclasses.replace(
+            model.capacity, contacts=max(model.capacity.contacts, state.contact_key.shape[-1])))
+    own = dataclasses.replace(scene, model=model, state=state, params=params)
+    shape = Shape.covering([own]).bucket()
+    return (own, shape, *jax.tree.map(jnp.asarray, pad_scene(own, shape)))
+
+
+class _Kept:
+    """What a run keeps of its steps: the output of the saved ones (every ``save_every``-th
+    and the last) with their numbers, and of every step its convergence and halvings, and
+    the worst residual of those that did not converge."""
+
+    def __init__(self, own: Scene, steps: int, save_every: int):
+        self.own, self.steps, self.every, self.worst = own, steps, save_every, 0.0
+        self.pieces, self.saved, self.converged, self.halvings = [], [np.zeros(1, np.int64)], [], []
+
+    def add(self, out, first: int, ok: np.ndarray, halvings: np.ndarray) -> None:
+        """Output rows ``out`` of the steps numbered ``first``, ``first`` + 1, ..."""
+        number = first + np.arange(ok.size)
+        keep = np.flatnonzero((number % self.every == 0) | (number == self.steps))
+        self.pieces.append(_own_bodies(jax.tree.map(lambda x: x[keep], out), self.own))
+        self.saved.append(number[keep])
+        self.converged.append(ok)
+        self.halvings.append(halvings)
+        self.worst = max(self.worst, float(np.max(np.asarray(out[-1].residual), where=~ok, initial=0.0)))
 
 
 def _run_grown(model, state, params, n_valid, length, stop):

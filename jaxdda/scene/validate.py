@@ -233,6 +233,14 @@ _PARAM_RANGES = {
 }
 
 
+def check_counts(**counts) -> None:
+    """Each named count (``steps=``, ``chunk=``, ...) is a positive integer, else a
+    ValueError naming it."""
+    for name, value in counts.items():
+        if isinstance(value, bool) or int(value) != value or value < 1:
+            raise ValueError(f"{name} must be a positive integer, got {value!r}")
+
+
 def check_params(params, where: str = "params") -> None:
     """Raise SceneError naming the field and entry of ``params`` (a Params, possibly with a
     leading batch axis) that is NaN or inf, or out of its range (dt, tol > 0; restitution
