@@ -12,7 +12,7 @@ import numpy as np
 
 from jaxdda import examples
 from jaxdda.errors import CapacityError, ConvergenceError, SceneError
-from jaxdda.simulate import CHUNK
+from jaxdda.simulate import CHUNK, simulate
 
 
 class _UsageError(Exception):
@@ -193,8 +193,6 @@ def _run(args) -> int:
     if steps is None:
         raise _UsageError(f"{args.scene}: give --steps (the scene file has no \"steps\")")
 
-    from jaxdda.simulate import simulate
-
     first_step = 0
     if args.resume:
         from jaxdda.checkpoint import CheckpointError, load_checkpoint
@@ -209,12 +207,19 @@ def _run(args) -> int:
     traj = simulate(scene, steps, chunk=args.chunk, save_every=args.save_every, progress=False if args.quiet else None,
                     on_nonconvergence=args.on_nonconvergence)
     wall = time.perf_counter() - start
+    _summarise(scene, steps, traj, wall, args.save_every)
+    _write_outputs(args, traj, first_step + traj.steps)
+    return 0
+
+
+def _summarise(scene, steps: int, traj, wall: float, save_every: int) -> None:
+    """Print the run's summary: time, solver iterations, convergence, halvings, contacts."""
     info = traj.info
     converged = np.asarray(traj.step_converged, bool)  # every step run, saved or not
     print(f"{scene.name}: {scene.n_bodies} bodies, {steps} steps of dt = {float(scene.params.dt):g} s")
     print(f"  simulated time    {float(traj.time[-1]):.6g} s")
     print(f"  wall time         {wall:.2f} s (including compilation)")
-    of = "" if args.save_every == 1 else " (of the saved steps)"
+    of = "" if save_every == 1 else " (of the saved steps)"
     print(f"  PC iterations     max {int(np.max(info.iterations))} per step{of}")
     if converged.all():
         print("  converged         every step")
@@ -226,11 +231,16 @@ def _run(args) -> int:
               f"{int(np.argmax(traj.halvings > 0)) + 1}; smallest sub-step dt/{2 ** int(traj.halvings.max())})")
     print(f"  contacts          max {int(np.max(info.n_contacts))}{of}")
     print(f"  penetration       max {float(np.max(info.max_penetration)):.3g}{of}")
+
+
+def _write_outputs(args, traj, step: int) -> None:
+    """Write what the command line asked for: checkpoint, npz, report, CSV, picture,
+    animation, VTK (``step``: the number of the run's last step, for the checkpoint)."""
     if args.checkpoint:
         from jaxdda.checkpoint import save_checkpoint
 
-        save_checkpoint(args.checkpoint, traj, step=first_step + traj.steps)
-        print(f"  wrote {args.checkpoint} (checkpoint at step {first_step + traj.steps})")
+        save_checkpoint(args.checkpoint, traj, step=step)
+        print(f"  wrote {args.checkpoint} (checkpoint at step {step})")
     if args.out:
         from jaxdda.export import save_npz
 
@@ -261,4 +271,3 @@ def _run(args) -> int:
 
         for path in write_vtk(traj, args.vtk, every=args.vtk_every):
             print(f"  wrote {path}")
-    return 0
