@@ -53,20 +53,32 @@ _solve = jax.jit(fista_newton.solve, static_argnums=(0, 9))
 def impacts_then_contacts(model: Model, state: State, params: Params, ops: Operators, frame: ContactFrame,
                           pred: Prediction, rows: ImpactRows) -> Solved:
     """The impact solve (compression P1 on ``rows``), then the contact VI built from its
-    velocity jump. Both through one jitted solver: traced once, one function called twice."""
+    velocity jump: two phases of one loop around one solve, so the solver is in the
+    program once (XLA inlines a function at each call: two calls were two copies)."""
     c, p0 = frame.contacts, frame.p0
     op_m, diag_m = flexibility(rows.jac, c, ops.m_inv)
     impacts = Problem(op_m, diag_m, rows.v_minus, rows.sets, jnp.zeros_like(p0), ops.momentum)
+
+    def contacts(p1):
+        jump = velocity_jump(model, params, ops, frame, pred, rows, op_m, p1)
+        return (jump, *contact_problem(model, state, params, ops, frame, pred, rows, jump))
 
     def solve(problem):
         return _solve(apply_w, problem.operand, problem.w_diag, problem.b, problem.sets, problem.warm, params.tol,
                       params.max_iter, problem.force_scale, model.options.newton_finish)
 
-    first = solve(impacts)
-    jump = velocity_jump(model, params, ops, frame, pred, rows, op_m, first.force)
-    problem, lin = contact_problem(model, state, params, ops, frame, pred, rows, jump)
-    second = solve(problem)
-    sols = jax.tree.map(lambda a, b: jnp.stack([a, b]), first, second)
+    none = jax.tree.map(jnp.zeros_like, jax.eval_shape(contacts, p0))
+
+    def phase(i, carry):
+        sols, _, _, _ = carry
+        jump, problem, lin = jax.lax.cond(i == 0, lambda: (none[0], impacts, none[2]),
+                                          lambda: contacts(sols.force[0]))
+        sol = solve(problem)
+        return jax.tree.map(lambda s, x: s.at[i].set(x), sols, sol), jump, problem, lin
+
+    first = jax.eval_shape(solve, impacts)
+    sols = jax.tree.map(lambda a: jnp.zeros((2,) + a.shape, a.dtype), first)
+    sols, jump, problem, lin = jax.lax.fori_loop(0, 2, phase, (sols, none[0], impacts, none[2]))
     return Solved(jump=jump, problem=problem, linearised=lin, solutions=sols)
 
 
