@@ -24,7 +24,7 @@ from typing import Any, Callable, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from jaxdda.solver.sets import ContactSets, project
+from jaxdda.solver.sets import ContactSets, linearize, project
 
 class Solution(NamedTuple):
     force: jax.Array  # (C, 3) normal force, shear force, rolling moment (or their impulses)
@@ -77,27 +77,33 @@ def solve(apply_w: Callable[[Any, jax.Array], jax.Array], operand: Any, w_diag: 
 
     # FISTA until converged or stalled; then semismooth Newton from its best point (a
     # stalled solve: a near-redundant contact set); and again, with FISTA's patience
-    # doubled at each hand-over, so Newton costs a bounded share. A Newton attempt that
-    # finds no better point leaves FISTA's momentum as it was.
+    # doubled at each hand-over, so Newton costs a bounded share. FISTA starts afresh from
+    # a Newton point that is better than its own best; otherwise its momentum is left as it
+    # was. (One start, in the loop: each call site of a function is its own code.)
     def cond(carry):
-        fista = carry[0]
-        return (fista.res_best > tol) & (fista.k < max_iter)
+        fista, _, _, res, _ = carry
+        return (res > tol) & (fista.k < max_iter)
 
     def body(carry):
-        fista, stall = carry
+        fista, stall, y, _, restart = carry
+        fresh = _fista_start(*args, y, fista.k, fista.lip, force_scale)
+        fista = jax.tree.map(lambda a, b: jnp.where(restart, a, b), fresh, fista)
         fista = _iterate(*args, fista, tol, max_iter, force_scale, stall)
         y, k, res = _newton(*args, fista.y_best, fista.k, fista.res_best, tol, max_iter, force_scale)
-        fresh = _fista_start(*args, y, k, fista.lip, force_scale)
-        kept = fista._replace(k=k, k_mark=k)
-        return jax.tree.map(lambda a, b: jnp.where(res < fista.res_best, a, b), fresh, kept), 2 * stall
+        better = res < fista.res_best
+        return fista._replace(k=k, k_mark=k), 2 * stall, y, jnp.minimum(res, fista.res_best), better
 
     y0 = p0 / jnp.where(scale > 0, scale, 1.0)
-    fista = _fista_start(*args, y0, jnp.int32(0), jnp.ones_like(tol), force_scale)
+    one, zero, inf = jnp.ones_like(tol), jnp.int32(0), jnp.full_like(tol, jnp.inf)
     if newton:
-        fista, _ = jax.lax.while_loop(cond, body, (fista, jnp.int32(STALL)))
+        blank = FistaState(y0, y0, y0, y0, one, one, y0, zero, inf, zero, inf)
+        fista, _, y, res, better = jax.lax.while_loop(cond, body, (blank, jnp.int32(STALL), y0, inf, jnp.array(True)))
+        y, res = jnp.where(better, y, fista.y_best), jnp.where(better, res, fista.res_best)
     else:
+        fista = _fista_start(*args, y0, zero, one, force_scale)
         fista = _iterate(*args, fista, tol, max_iter, force_scale, jnp.iinfo(jnp.int32).max)
-    y, k, res = fista.y_best, fista.k, fista.res_best
+        y, res = fista.y_best, fista.res_best
+    k = fista.k
     y = _implicit(apply_w, operand, b, sets, scale, y)
     return Solution(scale * y, k, res, res <= tol)
 
@@ -231,7 +237,7 @@ def _newton(apply_w, operand, b, sets, scale, y0, k0, res0, tol, max_iter, force
 
     def body(carry):
         y, y_best, res_best, j, k, j_best = carry
-        r, d_proj = jax.linearize(proj, y - (amul(y) + c))
+        r, d_proj = linearize(y - (amul(y) + c), scale, sets)
         rhs = r - y
         delta, left = _krylov(lambda v: v - d_proj(v - amul(v)), rhs, m)
         inconsistent = jnp.sum(left * left) > NULL_GATE ** 2 * jnp.sum(rhs * rhs)
@@ -367,7 +373,7 @@ def _implicit_jvp(apply_w, primals, tangents):
 
     _, r_dot = jax.jvp(residual, (operand, b, sets), (d_operand, d_b, d_sets))
     z = y - scale * (apply_w(operand, scale * y) + b)
-    _, d_proj = jax.linearize(lambda z: project(z, scale, sets), z)
+    _, d_proj = linearize(z, scale, sets)
 
     def matvec(v):
         return v - d_proj(v - scale * apply_w(operand, scale * v))

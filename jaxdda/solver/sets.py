@@ -24,10 +24,12 @@ compatible state with the split the paper's iteration converges to (k_t = |p_1| 
 """
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Callable, NamedTuple
 
 import jax
 import jax.numpy as jnp
+
+from jaxdda import batched
 
 
 class ContactSets(NamedTuple):
@@ -46,20 +48,27 @@ class ContactSets(NamedTuple):
     opposes: jax.Array | None = None
 
 
-def _share(excess, s, excess_p, s_p, budget):
+def _inverse(s):
+    """1 / s where s > 0, else 0."""
+    return jnp.where(s > 0, 1.0 / jnp.where(s > 0, s, 1.0), 0.0)
+
+
+def _share(excess, s, inv_s, excess_p, s_p, inv_p, budget):
     """The contact's excess after the Euclidean projection of the pair's excesses (scaled
     units) onto {s excess + s_p excess_p <= budget}: both shrink by lambda times their
     scale, lambda >= 0 the root of sum_pair s max(excess - lambda s, 0) = budget.
     Symmetric in (self, partner), so both contacts of a pair find the same lambda.
+    ``inv_s``, ``inv_p``: the scales' inverses. (Divisions only by functions of the scales,
+    which are fixed over a solve: a quotient of the iterate read twice would be a kernel of
+    its own where XLA compiles the iteration.)
     """
-    bp = excess / jnp.where(s > 0, s, 1.0)
-    bp_p = jnp.where(s_p > 0, excess_p / jnp.where(s_p > 0, s_p, 1.0), 0.0)
+    bp, bp_p = excess * inv_s, excess_p * inv_p
     total = s * excess + s_p * excess_p
-    both = (total - budget) / jnp.maximum(s * s + s_p * s_p, 1e-300)
+    both = (total - budget) * (1.0 / jnp.maximum(s * s + s_p * s_p, 1e-300))
     # Otherwise only the contact with the larger breakpoint is still shrinking.
     self_big = bp > bp_p
     e1, s1 = jnp.where(self_big, excess, excess_p), jnp.where(self_big, s, s_p)
-    one = (s1 * e1 - budget) / jnp.maximum(s1 * s1, 1e-300)
+    one = (s1 * e1 - budget) * jnp.where(self_big, inv_s, inv_p) ** 2
     lam = jnp.where(both <= jnp.minimum(bp, bp_p), both, one)
     shrunk = jnp.where(budget > 0, jnp.maximum(excess - jnp.maximum(lam, 0.0) * s, 0.0), 0.0)
     return jnp.where(total > budget, shrunk, excess)
@@ -72,37 +81,83 @@ def _clip(y: jax.Array, bound: jax.Array, opposes: jax.Array | None) -> jax.Arra
     return jnp.clip(y, jnp.where(opposes < 0, 0.0, -bound), jnp.where(opposes > 0, 0.0, bound))
 
 
-def project(y: jax.Array, scale: jax.Array, sets: ContactSets, normal: jax.Array | None = None) -> jax.Array:
-    """Euclidean projection of scaled unknowns y (C, 3) (p = scale * y) onto X.
+def _normal(y_n, s_n, inv_n, ten_p, s_p, inv_p, tension):
+    """The projected normal y_n (scaled): tension up to the budget the pair shares."""
+    ten = jnp.maximum(-y_n, 0.0)
+    return jnp.where(y_n >= 0, y_n, -_share(ten, s_n, inv_n, ten_p, s_p, inv_p, tension))
 
-    With ``normal`` (C,) given (a physical normal force), the friction and rolling bounds
-    use it instead of the projected normal: X(p) frozen at that force, a convex set. Without
-    it the bounds use the projected normal of the same contact, so a fixed point
-    p = P(p - beta G(p)) solves the QVI of eqs. 26, 28, 57 and 64.
-    """
-    has_p = sets.partner >= 0
-    part = jnp.where(has_p, sets.partner, 0)
 
-    def pair(v, budget=None):
-        """The partner's value; zero without a partner or, given ``budget``, where the
-        partner has no share of it (a broken joint next to an intact one)."""
-        ok = has_p if budget is None else has_p & (budget[part] > 0)
-        return jnp.where(ok, v[part], 0.0)
+def _partner(x: jax.Array, partner: jax.Array) -> jax.Array:
+    """Each contact's partner's row of x (C, k); zero where it has none."""
+    has_p = partner >= 0
+    return jnp.where(has_p[:, None], x[jnp.where(has_p, partner, 0)], 0.0)
 
-    s_n, s_t, s_m = scale[:, 0], scale[:, 1], scale[:, 2]
-    # Normal: tension up to the shared budget t.
-    ten = jnp.maximum(-y[:, 0], 0.0)
-    y_n = jnp.where(y[:, 0] >= 0, y[:, 0], -_share(ten, s_n, pair(ten, sets.tension), pair(s_n), sets.tension))
-    p_n = jnp.maximum(s_n * y_n if normal is None else normal, 0.0)
+
+def _paired(y: jax.Array, scale: jax.Array, sets: ContactSets) -> tuple[jax.Array, jax.Array]:
+    """The partner's unknowns y_q (C, 3) and its data (C, 6): scale, friction, tension,
+    cohesion; one gather."""
+    data = jnp.concatenate([scale, jnp.stack([sets.friction, sets.tension, sets.cohesion], -1)], -1)
+    theirs = _partner(jnp.concatenate([y, data], -1), sets.partner)
+    return theirs[:, :3], theirs[:, 3:]
+
+
+def _projection(y, y_q, scale, data_q, sets: ContactSets) -> jax.Array:
+    """P(y) (C, 3), each contact from its own row and its partner's (y_q, data_q of
+    ``_paired``): the partner's normal is projected here too (the relation is symmetric),
+    so the map is elementwise over contacts."""
+    s_q, friction_q, tension_q, cohesion_q = data_q[:, :3], data_q[:, 3], data_q[:, 4], data_q[:, 5]
+
+    inv, inv_q = _inverse(scale), _inverse(s_q)
+
+    def bound(y_n, s, inv, coef, i=1):  # the friction (rolling) bound of a normal force, in row i's units
+        return coef * jnp.maximum(s[:, 0] * y_n, 0.0) * inv[:, i]
+
+    # Normal: tension up to the shared budget t (a partner with no share of it counts none).
+    ten, ten_q = jnp.maximum(-y[:, 0], 0.0), jnp.maximum(-y_q[:, 0], 0.0)
+    y_n = _normal(y[:, 0], scale[:, 0], inv[:, 0], jnp.where(tension_q > 0, ten_q, 0.0), s_q[:, 0], inv_q[:, 0],
+                  sets.tension)
+    y_n_q = _normal(y_q[:, 0], s_q[:, 0], inv_q[:, 0], jnp.where(sets.tension > 0, ten, 0.0), scale[:, 0], inv[:, 0],
+                    tension_q)
     # Shear: friction bound of its own, plus the shared cohesion.
-    fric = sets.friction * p_n / jnp.where(s_t > 0, s_t, 1.0)
+    fric = bound(y_n, scale, inv, sets.friction)
     over = jnp.maximum(jnp.abs(y[:, 1]) - fric, 0.0)
-    bound_t = fric + _share(over, s_t, pair(over, sets.cohesion), pair(s_t), sets.cohesion)
+    over_q = jnp.where(cohesion_q > 0, jnp.maximum(jnp.abs(y_q[:, 1]) - bound(y_n_q, s_q, inv_q, friction_q), 0.0), 0.0)
+    bound_t = fric + _share(over, scale[:, 1], inv[:, 1], over_q, s_q[:, 1], inv_q[:, 1], sets.cohesion)
     y_t = _clip(y[:, 1], bound_t, None if sets.opposes is None else sets.opposes[:, 0])
     # Rolling moment.
-    bound_m = sets.rolling * p_n / jnp.where(s_m > 0, s_m, 1.0)
+    bound_m = bound(y_n, scale, inv, sets.rolling, 2)
     y_m = _clip(y[:, 2], bound_m, None if sets.opposes is None else sets.opposes[:, 1])
     return jnp.where(sets.enabled[:, None], jnp.stack([y_n, y_t, y_m], -1), 0.0)
+
+
+def project(y: jax.Array, scale: jax.Array, sets: ContactSets) -> jax.Array:
+    """Euclidean projection of scaled unknowns y (C, 3) (p = scale * y) onto X(p).
+
+    The friction and rolling bounds use the projected normal of the same contact, so a
+    fixed point p = P(p - beta G(p)) solves the QVI of eqs. 26, 28, 57 and 64. One gather
+    (the partners' rows) and elementwise work.
+    """
+    y_q, data_q = _paired(y, scale, sets)
+    return _projection(y, y_q, scale, data_q, sets)
+
+
+def linearize(y: jax.Array, scale: jax.Array, sets: ContactSets) -> tuple[jax.Array, Callable[[jax.Array], jax.Array]]:
+    """P(y) and its derivative at y as a linear map v -> D v: per contact a 3 x 3 block on
+    its own row and one on its partner's (``_projection`` is elementwise over contacts, so
+    three tangents per side give the blocks). The map is a gather and elementwise work,
+    transposable (the adjoint solve of ``fista_newton._implicit`` transposes it)."""
+    y_q, data_q = _paired(y, scale, sets)
+
+    def blocks(f, x):  # (C, 3 out, 3 in) of the elementwise map f at x
+        return jax.vmap(lambda e: jax.jvp(f, (x,), (jnp.broadcast_to(e, x.shape),))[1], out_axes=-1)(jnp.eye(3, dtype=x.dtype))
+
+    own = blocks(lambda a: _projection(a, y_q, scale, data_q, sets), y)
+    theirs = blocks(lambda b: _projection(y, b, scale, data_q, sets), y_q)
+
+    def derivative(v):
+        return batched.mv(own, v) + batched.mv(theirs, _partner(v, sets.partner))
+
+    return _projection(y, y_q, scale, data_q, sets), derivative
 
 
 # A shear force within this fraction of its bound is on the bound (the solver's iterates
