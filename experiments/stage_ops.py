@@ -1,15 +1,26 @@
-"""Where the step's StableHLO ops are (issue 40's budget: <= 6 000 for the rockfall): the
-step is lowered as growing prefixes of its pipeline (``jaxdda/step/pipeline.py``), each
-stage's share is the difference. Prints a table, writes results/stage_ops.json.
+"""Where the step's StableHLO ops and compiled kernels are (issue 40's budget: <= 6 000 ops
+for the rockfall). Ops: the step is lowered as growing prefixes of its pipeline
+(``jaxdda/step/pipeline.py``), each stage's share is the difference. Kernels: the fusions of
+the compiled step (XLA:CPU compiles each as an LLVM module and runs each as a thunk, so
+they drive compile and run time), by the stage's named scope in their op names. Prints a
+table, writes results/stage_ops.json.
 
     python experiments/stage_ops.py [SCENE ...]      (default: rockfall pile)
 """
 from __future__ import annotations
 
+import collections
+import glob
 import json
+import os
 import re
 import sys
+import tempfile
 from pathlib import Path
+
+DUMP = tempfile.mkdtemp(prefix="stage_ops-")
+os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + f" --xla_dump_to={DUMP} --xla_dump_hlo_as_text"
+                           " --xla_dump_hlo_module_re=jit_step --xla_dump_hlo_pass_re=NONE")
 
 import jax
 import jax.numpy as jnp
@@ -66,21 +77,42 @@ def ops(fn, *args) -> int:
     return sum(1 for line in text.splitlines() if re.search(r"(= |^\s*)\"?stablehlo\.", line))
 
 
+SCOPES = ["assemble", "detect", "predict", "impacts", "solves", "end", "rupture", "update", "report"]  # pipeline's
+
+
+def kernels(*args) -> dict:
+    """Fusion kernels of the compiled step per stage scope (``other``: none of them)."""
+    for old in glob.glob(f"{DUMP}/*"):
+        os.remove(old)
+    jax.jit(jaxdda.step).lower(*args).compile()
+    text = Path(glob.glob(f"{DUMP}/*jit_step*after_optimizations.txt")[0]).read_text()
+    counts = collections.Counter()
+    for line in text.splitlines():
+        if re.match(r"^\s+(ROOT )?%[\w.-]+ = .* fusion\(", line):
+            name = re.search(r'op_name="([^"]+)"', line)
+            scope = [s for s in SCOPES if name and f"/{s}/" in name.group(1) + "/"]
+            counts[scope[0] if scope else "other"] += 1
+    return dict(counts)
+
+
 def shares(name: str) -> dict:
     scene = jaxdda.examples.get(name)
     args = jax.tree.map(jnp.asarray, pad_scene(scene, Shape.covering([scene]).bucket()))
     counts = [ops(prefix(k), *args) for k in range(len(STAGES))]
     return {"step": ops(jaxdda.step, *args),
-            "stages": {s: c - p for s, c, p in zip(STAGES, counts, [0] + counts[:-1])}}
+            "stages": {s: c - p for s, c, p in zip(STAGES, counts, [0] + counts[:-1])},
+            "kernels": kernels(*args)}
 
 
 def main() -> None:
     names = sys.argv[1:] or ["rockfall", "pile"]
     table = {name: shares(name) for name in names}
-    print("| stage | " + " | ".join(names) + " |\n|---|" + "---|" * len(names))
-    for stage in STAGES:
-        print(f"| {stage} | " + " | ".join(str(table[n]["stages"][stage]) for n in names) + " |")
-    print("| jit(step) | " + " | ".join(str(table[n]["step"]) for n in names) + " |")
+    print("| stage (scope) | " + " | ".join(f"{n}: ops | kernels" for n in names) + " |\n|---|" + "---|" * (2 * len(names)))
+    for stage, scope in zip(STAGES, SCOPES):
+        print(f"| {stage} ({scope}) | " + " | ".join(
+            f"{table[n]['stages'][stage]} | {table[n]['kernels'].get(scope, 0)}" for n in names) + " |")
+    print("| jit(step) | " + " | ".join(
+        f"{table[n]['step']} | {sum(table[n]['kernels'].values())}" for n in names) + " |")
     out = Path(__file__).parent / "results" / "stage_ops.json"
     out.write_text(json.dumps({"jax": jax.__version__, "scenes": table}, indent=1))
     print(f"wrote {out}")

@@ -22,18 +22,28 @@ from jaxdda.types import Model, Params, State, StepInfo
 def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
     """Advance one step of length params.dt. Pure: jit, vmap and scan apply."""
     base = model
-    model, ops = assemble(base, state, params)
-    frame = contact_frame(model, state, params)
-    pred = predict(model, state, params, ops, frame)
-    rows = impact_rows(model, state, params, ops, frame, pred)
-    solved = impacts_then_contacts(model, state, params, ops, frame, pred, rows)
-    res = step_end(model, params, ops, frame, rows, solved)
-    integrity, tension = rupture(model, state, params, frame.cemented, frame.joint, res.force, res.gap_end, res.w_nn,
-                                 res.force_scale)
-    new_state = update(base, model, state, params, ops, res.displacement, res.velocity, frame.contacts.key,
-                       res.memory, integrity)
-    report = contact_report(frame, res.point, res.normal, res.parts)
-    info = step_info(model, frame, res.solutions, integrity, tension, connector_forces(base, params, new_state), report)
+    with jax.named_scope("assemble"):
+        model, ops = assemble(base, state, params)
+    with jax.named_scope("detect"):
+        frame = contact_frame(model, state, params)
+    with jax.named_scope("predict"):
+        pred = predict(model, state, params, ops, frame)
+    with jax.named_scope("impacts"):
+        rows = impact_rows(model, state, params, ops, frame, pred)
+    with jax.named_scope("solves"):
+        solved = impacts_then_contacts(model, state, params, ops, frame, pred, rows)
+    with jax.named_scope("end"):
+        res = step_end(model, params, ops, frame, rows, solved)
+    with jax.named_scope("rupture"):
+        integrity, tension = rupture(model, state, params, frame.cemented, frame.joint, res.force, res.gap_end,
+                                     res.w_nn, res.force_scale)
+    with jax.named_scope("update"):
+        new_state = update(base, model, state, params, ops, res.displacement, res.velocity, frame.contacts.key,
+                           res.memory, integrity)
+    with jax.named_scope("report"):
+        report = contact_report(frame, res.point, res.normal, res.parts)
+        info = step_info(model, frame, res.solutions, integrity, tension, connector_forces(base, params, new_state),
+                         report)
     return new_state, info
 
 
