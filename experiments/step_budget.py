@@ -8,7 +8,10 @@ Figures per engine:
 
 - ``ops``: StableHLO operations of ``jax.jit(step).lower(...)`` for the rockfall (3 bodies);
   ``solver copies``: how many times the contact solve is traced into that program;
-- trace + compile of ``jax.jit(step)``: rockfall, and a pile of 1000 disks;
+- ``kernels``: fusion kernels of the compiled rockfall step (each an LLVM module to compile
+  and a thunk to run on XLA:CPU);
+- trace + compile of ``jax.jit(step)``: rockfall (and the compile's CPU time, which load
+  on the machine disturbs less), and a pile of 1000 disks;
 - one rockfall step (compiled, single scene), median over 200 calls;
 - batched rockfall: ``vmap(step)`` in a ``lax.scan``, B scenarios, scenario-steps per second;
 - ``value_and_grad`` of a 10-step incline rollout (friction and start speed): compile time;
@@ -33,7 +36,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
-FIGURES = ("ops", "compile", "pile_compile", "single", "batched", "grad", "cli", "fuzz")
+FIGURES = ("ops", "kernels", "compile", "pile_compile", "single", "batched", "grad", "cli", "fuzz")
 
 
 # -- children: one figure of one engine, in a process importing that engine ---------------
@@ -77,10 +80,24 @@ def child_ops(args) -> dict:
 def _compile_time(scene) -> dict:
     t0 = time.perf_counter()
     lowered = _lowered_step(scene)
-    t1 = time.perf_counter()
+    t1, c1 = time.perf_counter(), time.process_time()
     lowered.compile()
-    t2 = time.perf_counter()
-    return {"trace s": t1 - t0, "compile s": t2 - t1, "total s": t2 - t0}
+    t2, c2 = time.perf_counter(), time.process_time()
+    return {"trace s": t1 - t0, "compile s": t2 - t1, "total s": t2 - t0, "compile cpu s": c2 - c1}
+
+
+def child_kernels(args) -> dict:
+    """Fusion kernels and executable instructions of the compiled rockfall step, from XLA's
+    dump of the optimized module (XLA:CPU compiles each kernel as an LLVM module)."""
+    import glob
+    dump = tempfile.mkdtemp(prefix="step_budget-")
+    os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + f" --xla_dump_to={dump} --xla_dump_hlo_as_text"
+                               " --xla_dump_hlo_module_re=jit_step --xla_dump_hlo_pass_re=NONE")
+    from jaxdda.examples.practical import rockfall
+    _lowered_step(rockfall()).compile()
+    text = Path(glob.glob(f"{dump}/*jit_step*after_optimizations.txt")[0]).read_text()
+    fusions = sum(1 for line in text.splitlines() if re.match(r"^\s+(ROOT )?%[\w.-]+ = .* fusion\(", line))
+    return {"kernels": fusions}
 
 
 def child_compile(args) -> dict:
@@ -231,7 +248,9 @@ def worktree(commit: str) -> Path:
 ROWS = [  # (label, figure, key, format)
     ("StableHLO ops of jit(step), rockfall", "ops", "ops", "{:.0f}"),
     ("solver copies traced into the step", "ops", "solver copies", "{:.0f}"),
+    ("compiled kernels (fusions) of jit(step), rockfall", "kernels", "kernels", "{:.0f}"),
     ("trace + compile jit(step), rockfall (s)", "compile", "total s", "{:.1f}"),
+    ("XLA compile of jit(step), rockfall: CPU time (s)", "compile", "compile cpu s", "{:.1f}"),
     ("trace + compile jit(step), pile of 1000 (s)", "pile_compile", "total s", "{:.1f}"),
     ("one rockfall step (ms, median)", "single", "step ms", "{:.3f}"),
     ("batched rockfall (scenario-steps/s)", "batched", "scenario-steps/s", "{:.3g}"),
