@@ -75,11 +75,25 @@ def solve(apply_w: Callable[[Any, jax.Array], jax.Array], operand: Any, w_diag: 
 
     args = (apply_w, *jax.lax.stop_gradient((operand, b, sets)), scale)
 
-    # FISTA until converged or stalled; then semismooth Newton from its best point (a
-    # stalled solve: a near-redundant contact set); and again, with FISTA's patience
-    # doubled at each hand-over, so Newton costs a bounded share. FISTA starts afresh from
-    # a Newton point that is better than its own best; otherwise its momentum is left as it
-    # was. (One start, in the loop: each call site of a function is its own code.)
+    y0 = p0 / jnp.where(scale > 0, scale, 1.0)
+    y, k, res = _fista_newton(args, y0, tol, max_iter, force_scale, newton)
+    y = _implicit(apply_w, operand, b, sets, scale, y)
+    return Solution(scale * y, k, res, res <= tol)
+
+
+def _fista_newton(args, y0, tol, max_iter, force_scale, newton):
+    """FISTA until converged or stalled; then semismooth Newton from its best point (a
+    stalled solve: a near-redundant contact set); and again, with FISTA's patience doubled
+    at each hand-over, so Newton costs a bounded share. FISTA starts afresh from a Newton
+    point better than its own best; otherwise its momentum is left as it was. (One start,
+    in the loop: each call site of a function is its own code.) Without ``newton``
+    (static), FISTA alone. Returns the scaled solution, the iterations and the residual."""
+    one, zero, inf = jnp.ones_like(tol), jnp.int32(0), jnp.full_like(tol, jnp.inf)
+    if not newton:
+        fista = _iterate(*args, _fista_start(*args, y0, zero, one, force_scale), tol, max_iter, force_scale,
+                         jnp.iinfo(jnp.int32).max)
+        return fista.y_best, fista.k, fista.res_best
+
     def cond(carry):
         fista, _, _, res, _ = carry
         return (res > tol) & (fista.k < max_iter)
@@ -93,19 +107,9 @@ def solve(apply_w: Callable[[Any, jax.Array], jax.Array], operand: Any, w_diag: 
         better = res < fista.res_best
         return fista._replace(k=k, k_mark=k), 2 * stall, y, jnp.minimum(res, fista.res_best), better
 
-    y0 = p0 / jnp.where(scale > 0, scale, 1.0)
-    one, zero, inf = jnp.ones_like(tol), jnp.int32(0), jnp.full_like(tol, jnp.inf)
-    if newton:
-        blank = FistaState(y0, y0, y0, y0, one, one, y0, zero, inf, zero, inf)
-        fista, _, y, res, better = jax.lax.while_loop(cond, body, (blank, jnp.int32(STALL), y0, inf, jnp.array(True)))
-        y, res = jnp.where(better, y, fista.y_best), jnp.where(better, res, fista.res_best)
-    else:
-        fista = _fista_start(*args, y0, zero, one, force_scale)
-        fista = _iterate(*args, fista, tol, max_iter, force_scale, jnp.iinfo(jnp.int32).max)
-        y, res = fista.y_best, fista.res_best
-    k = fista.k
-    y = _implicit(apply_w, operand, b, sets, scale, y)
-    return Solution(scale * y, k, res, res <= tol)
+    blank = FistaState(y0, y0, y0, y0, one, one, y0, zero, inf, zero, inf)
+    fista, _, y, res, better = jax.lax.while_loop(cond, body, (blank, jnp.int32(STALL), y0, inf, jnp.array(True)))
+    return jnp.where(better, y, fista.y_best), fista.k, jnp.where(better, res, fista.res_best)
 
 
 # FISTA hands over to Newton when its least residual has not halved in STALL iterations
