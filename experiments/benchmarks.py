@@ -33,7 +33,7 @@ batched    the rockfall (``examples.rockfall``, one rock on two fixed slabs) for
            B initial velocities: scenario-steps per second, jaxdda vmapped (or
            ``jaxdda.monte_carlo`` when present) against pymunk run sequentially and Jax2D
            vmapped (float32, its native precision).
-warmstart  PC iterations per step on a settled (static) pile: as is (each step starts
+warmstart  solver iterations per step on a settled (static) pile: as is (each step starts
            from last step's forces), and cold (``state.contact_force`` zeroed before every
            step). Zeroing also makes every contact "new" (the step treats a contact that
            carried force last step as sustained, otherwise as a possible impact), so a
@@ -505,7 +505,7 @@ def bench_scaling(pile_result: dict) -> dict:
                  f"{'met' if ratio <= 12 else 'NOT met'} (target <= 12)"
     notes = [f"'common': the first {common} steps, which every size ran (the same phase of the settling; "
              "the grid start falls freely for about 15 steps, then collapses).",
-             "us/iteration: run time over the total PC iterations (a rough cost of one iteration).",
+             "us/iteration: run time over the total solver iterations (a rough cost of one iteration).",
              f"reference size: N={ref['N']}."]
     print("\n## scaling: jaxdda cost per step against N (from the pile runs)\n")
     print(md_table(rows, ["N", "steps (common)", "ms/step (common)", "iters/step (common)", "us/iteration (common)",
@@ -813,7 +813,7 @@ def bench_warmstart(args, finals: dict) -> dict:
              "counts as new (not sustained), so it also goes through the impact solve as a possible impact.",
              "cold, sustained kept: forces zeroed but a contact that carried force keeps 1e-200 N, so it is still "
              "treated as sustained: only the solver's starting point differs from warm."]
-    print(f"\n## warm start: PC iterations per step on a static pile (N={n})\n")
+    print(f"\n## warm start: solver iterations per step on a static pile (N={n})\n")
     print(md_table(rows, ["start", "steps", "iters/step", "x warm", "median iters", "max iters", "converged",
                           "max residual", "ms/step", "final max speed"]))
     print("\n" + "\n".join(f"- {x}" for x in notes))

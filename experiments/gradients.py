@@ -127,7 +127,7 @@ def time_scene(name: str, steps: int, repeats: int) -> dict:
             "forward ms/step": 1e3 * fwd_s / steps, "fwd+bwd ms/step": 1e3 * grad_s / steps,
             "ratio": grad_s / fwd_s, "compile s (forward)": compile_fwd, "compile s (grad)": compile_grad,
             "loss": float(value), "d loss / d friction": np.asarray(grad).tolist(),
-            "max PC iterations": int(iterations), "all converged": bool(converged),
+            "max solver iterations": int(iterations), "all converged": bool(converged),
             "capacity": dataclasses.asdict(model.capacity)}
 
 

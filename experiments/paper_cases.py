@@ -154,7 +154,7 @@ def main() -> None:
                       ("7.8 cement", case_7_8)]:
         figures, run, wall = fn()
         figures.update({"case": label, "steps": run.steps, "wall s": wall,
-                        "max PC iterations": int(run.info.iterations.max()),
+                        "max solver iterations": int(run.info.iterations.max()),
                         "all converged": bool(run.info.converged.all())})
         rows.append(figures)
         shown = ", ".join(f"{k} {v:.3g}" if isinstance(v, float) else f"{k} {v}" for k, v in figures.items()

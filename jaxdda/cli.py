@@ -220,7 +220,7 @@ def _summarise(scene, steps: int, traj, wall: float, save_every: int) -> None:
     print(f"  simulated time    {float(traj.time[-1]):.6g} s")
     print(f"  wall time         {wall:.2f} s (including compilation)")
     of = "" if save_every == 1 else " (of the saved steps)"
-    print(f"  PC iterations     max {int(np.max(info.iterations))} per step{of}")
+    print(f"  solver iterations max {int(np.max(info.iterations))} per step{of}")
     if converged.all():
         print("  converged         every step")
     else:
