@@ -20,7 +20,6 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from jaxdda import batched
 from jaxdda._pytree import pytree_dataclass
 from jaxdda.bodies.mass import inverse_on_subspace, spd_inverse
 from jaxdda.types import NDOF
@@ -127,7 +126,7 @@ def _slots(flex: Flexibility, x: jax.Array) -> jax.Array:
 
 def apply(flex: Flexibility, x: jax.Array) -> jax.Array:
     """(N, 6) -> (N, 6): the inverse applied to per-body generalised forces."""
-    y = batched.mv(flex.single, x)
+    y = jnp.einsum("nij,nj->ni", flex.single, x)
     if flex.n_groups == 0:
         return y
     g, s = flex.members.shape

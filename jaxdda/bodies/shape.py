@@ -17,9 +17,7 @@ def to_world(centroid: jax.Array, theta: jax.Array, local: jax.Array) -> jax.Arr
     For a rigid body this is exactly the post-adjusted displacement of eq. 16: a finite
     rotation about the centroid plus a translation, so no false volume growth.
     """
-    c, s = jnp.cos(theta), jnp.sin(theta)
-    x, y = local[..., 0], local[..., 1]
-    return centroid + jnp.stack([c * x - s * y, s * x + c * y], -1)
+    return centroid + jnp.einsum("...ij,...j->...i", rotation_matrix(theta), local)
 
 
 def shape_function(point: jax.Array, centroid: jax.Array) -> jax.Array:

@@ -11,7 +11,6 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from jaxdda import batched
 from jaxdda.bodies.elastic import strain_tensor
 from jaxdda.bodies.shape import shape_function, to_world
 from jaxdda.types import B_HOLE, B_LINE, Contacts
@@ -113,7 +112,7 @@ def gap_change_at(c: Contacts, centroid: jax.Array, rotation: jax.Array, motion_
     def moved(body, local, motion):
         shift, turn, strain = motion
         offset = to_world(jnp.zeros_like(local), rotation[body], local)
-        stretch = batched.mv(strain_tensor(strain), offset)
+        stretch = jnp.einsum("cij,cj->ci", strain_tensor(strain), offset)
         return shift + _rotation_increment(rotation[body], turn, local) + stretch
 
     ua, uq = moved(c.a, c.pa, motion_a), moved(c.b, c.qb, motion_b)
@@ -132,7 +131,7 @@ def gap_change_at(c: Contacts, centroid: jax.Array, rotation: jax.Array, motion_
     t_unit, _ = _safe_unit(xe - xq)
     n = clockwise(t_unit)
     dn = _rotation_increment(jnp.zeros_like(turn_b), turn_b, n)
-    t_new = clockwise(n + dn) * -1.0 + batched.mv(strain_tensor(strain_b), t_unit)
+    t_new = clockwise(n + dn) * -1.0 + jnp.einsum("cij,cj->ci", strain_tensor(strain_b), t_unit)
     dn = jnp.where(jnp.any(strain_b != 0, -1)[:, None], clockwise(_safe_unit(t_new)[0]) - n, dn)
     line_change = jnp.sum(dn * (r + dr), -1) + jnp.sum(n * dr, -1) - d_ra
     return jnp.where(c.btype == B_LINE, line_change,
@@ -160,7 +159,7 @@ def jacobians_at(c: Contacts, normal: jax.Array, point: jax.Array, gap: jax.Arra
     ta = shape_function(point + half, centroid_a)
     tb = shape_function(point - half, centroid_b)
     roll = jnp.broadcast_to(jnp.eye(ta.shape[-1])[2], ta.shape[:1] + (1, ta.shape[-1]))
-    return jnp.stack([jnp.concatenate([batched.mm(frame, ta), roll], 1), -jnp.concatenate([batched.mm(frame, tb), roll], 1)], 1)
+    return jnp.stack([jnp.concatenate([frame @ ta, roll], 1), -jnp.concatenate([frame @ tb, roll], 1)], 1)
 
 
 def discrete_gradient(jac: jax.Array, c: Contacts, d: jax.Array, change: jax.Array, reach: jax.Array) -> jax.Array:
@@ -202,10 +201,11 @@ def discrete_gradient(jac: jax.Array, c: Contacts, d: jax.Array, change: jax.Arr
 
 def apply_jacobian(jac: jax.Array, c: Contacts, dofs: jax.Array) -> jax.Array:
     """(C, 2) = J d: relative (normal, shear) motion at each contact from body dofs (N, 6)."""
-    return batched.mv(jac[:, 0], dofs[c.a]) + batched.mv(jac[:, 1], dofs[c.b])
+    return jnp.einsum("cij,cj->ci", jac[:, 0], dofs[c.a]) + jnp.einsum("cij,cj->ci", jac[:, 1], dofs[c.b])
 
 
 def apply_jacobian_t(jac: jax.Array, c: Contacts, forces: jax.Array, n_bodies: int) -> jax.Array:
     """(N, 6) = J^T p: generalised forces on bodies from contact forces (C, 2) (eq. 9)."""
-    fa, fb = batched.vm(forces, jac[:, 0]), batched.vm(forces, jac[:, 1])
+    fa = jnp.einsum("cij,ci->cj", jac[:, 0], forces)
+    fb = jnp.einsum("cij,ci->cj", jac[:, 1], forces)
     return jax.ops.segment_sum(fa, c.a, n_bodies) + jax.ops.segment_sum(fb, c.b, n_bodies)

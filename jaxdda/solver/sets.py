@@ -29,8 +29,6 @@ from typing import Callable, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from jaxdda import batched
-
 
 class ContactSets(NamedTuple):
     """Per-contact data of X(p); shared budgets are given once per pair, on both contacts."""
@@ -155,7 +153,7 @@ def linearize(y: jax.Array, scale: jax.Array, sets: ContactSets) -> tuple[jax.Ar
     theirs = blocks(lambda b: _projection(y, b, scale, data_q, sets), y_q)
 
     def derivative(v):
-        return batched.mv(own, v) + batched.mv(theirs, _partner(v, sets.partner))
+        return jnp.einsum("cij,cj->ci", own, v) + jnp.einsum("cij,cj->ci", theirs, _partner(v, sets.partner))
 
     return _projection(y, y_q, scale, data_q, sets), derivative
 

@@ -8,7 +8,6 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from jaxdda import batched
 from jaxdda.contact.kinematics import gap_frame_at, jacobians_at
 from jaxdda.integrate import mesh_clock
 from jaxdda.solver.sets import ContactSets
@@ -42,7 +41,7 @@ def impact_rows(model: Model, state: State, params: Params, ops: Operators, fram
     pose_b = (state.centroid[c.b] + move_b[0], state.rotation[c.b] + move_b[1])
     gap_hit, normal_hit, point_hit = gap_frame_at(c, pose_a, pose_b)
     jac_hit = jacobians_at(c, normal_hit, point_hit, gap_hit, pose_a[0], pose_b[0])
-    v_hit = batched.mv(jac_hit[:, 0], vel_a) + batched.mv(jac_hit[:, 1], vel_b)
+    v_hit = jnp.einsum("cij,cj->ci", jac_hit[:, 0], vel_a) + jnp.einsum("cij,cj->ci", jac_hit[:, 1], vel_b)
     taking = pred.engaged
     struck = taking & ~pred.loaded & (v_hit[:, 0] < 0) & ((gap_hit <= params.margin) | (pred.t_row == 0))
     zero = jnp.zeros_like(frame.gap0)
