@@ -104,7 +104,6 @@ def _projection(y, y_q, scale, data_q, sets: ContactSets) -> jax.Array:
     ``_paired``): the partner's normal is projected here too (the relation is symmetric),
     so the map is elementwise over contacts."""
     s_q, friction_q, tension_q, cohesion_q = data_q[:, :3], data_q[:, 3], data_q[:, 4], data_q[:, 5]
-
     inv, inv_q = _inverse(scale), _inverse(s_q)
 
     def bound(y_n, s, inv, coef, i=1):  # the friction (rolling) bound of a normal force, in row i's units
@@ -146,8 +145,9 @@ def linearize(y: jax.Array, scale: jax.Array, sets: ContactSets) -> tuple[jax.Ar
     transposable (the adjoint solve of ``fista_newton._implicit`` transposes it)."""
     y_q, data_q = _paired(y, scale, sets)
 
-    def blocks(f, x):  # (C, 3 out, 3 in) of the elementwise map f at x
-        return jax.vmap(lambda e: jax.jvp(f, (x,), (jnp.broadcast_to(e, x.shape),))[1], out_axes=-1)(jnp.eye(3, dtype=x.dtype))
+    def blocks(f, x):  # (C, 3 out, 3 in) of the elementwise map f at x: one tangent per input component
+        column = lambda e: jax.jvp(f, (x,), (jnp.broadcast_to(e, x.shape),))[1]  # noqa: E731
+        return jax.vmap(column, out_axes=-1)(jnp.eye(3, dtype=x.dtype))
 
     own = blocks(lambda a: _projection(a, y_q, scale, data_q, sets), y)
     theirs = blocks(lambda b: _projection(y, b, scale, data_q, sets), y_q)
