@@ -28,7 +28,7 @@ from jaxdda.solver.sets import ContactSets, linearize, project
 
 class Solution(NamedTuple):
     force: jax.Array  # (C, 3) normal force, shear force, rolling moment (or their impulses)
-    iterations: jax.Array  # () int32 products with W: one per FISTA iteration, m + 2 per Newton step
+    iterations: jax.Array  # () int32 products with W: one per FISTA iteration, m + 1 per Newton step
     residual: jax.Array  # () max |p - P(p - G/diag W)| relative to max |p|
     converged: jax.Array  # () bool
 
@@ -103,11 +103,11 @@ def _fista_newton(args, y0, tol, max_iter, force_scale, newton):
         fresh = _fista_start(*args, y, fista.k, fista.lip, force_scale)
         fista = jax.tree.map(lambda a, b: jnp.where(restart, a, b), fresh, fista)
         fista = _iterate(*args, fista, tol, max_iter, force_scale, stall)
-        y, k, res = _newton(*args, fista.y_best, fista.k, fista.res_best, tol, max_iter, force_scale)
+        y, k, res = _newton(*args, fista.y_best, fista.ay_best, fista.k, fista.res_best, tol, max_iter, force_scale)
         better = res < fista.res_best
         return fista._replace(k=k, k_mark=k), 2 * stall, y, jnp.minimum(res, fista.res_best), better
 
-    blank = FistaState(y0, y0, y0, y0, one, one, y0, zero, inf, zero, inf)
+    blank = FistaState(y0, y0, y0, y0, one, one, y0, y0, zero, inf, zero, inf)
     fista, _, y, res, better = jax.lax.while_loop(cond, body, (blank, jnp.int32(STALL), y0, inf, jnp.array(True)))
     return jnp.where(better, y, fista.y_best), fista.k, jnp.where(better, res, fista.res_best)
 
@@ -148,6 +148,7 @@ class FistaState(NamedTuple):
     t: jax.Array  # () Nesterov's momentum parameter
     lip: jax.Array  # () L, the step's curvature bound
     y_best: jax.Array  # the iterate of least residual
+    ay_best: jax.Array  # S W S y_best
     k: jax.Array  # () int32 iterations so far (products with W)
     res_best: jax.Array  # () the least residual
     k_mark: jax.Array  # () the iteration at which res_best last halved
@@ -160,7 +161,7 @@ def _fista_start(apply_w, operand, b, sets, scale, y0, k0, lip0, force_scale) ->
     y0 = proj(jnp.where(sets.enabled[:, None], y0, 0.0))
     a0 = amul(y0)
     res0 = residual(y0, a0 + c)
-    return FistaState(y0, a0, y0, a0, jnp.ones_like(lip0), lip0, y0, k0, res0, k0, res0)
+    return FistaState(y0, a0, y0, a0, jnp.ones_like(lip0), lip0, y0, a0, k0, res0, k0, res0)
 
 
 def _iterate(apply_w, operand, b, sets, scale, state, tol, max_iter, force_scale, stall):
@@ -193,7 +194,7 @@ def _iterate(apply_w, operand, b, sets, scale, state, tol, max_iter, force_scale
         return (s.res_best > tol) & (s.k < max_iter) & (s.k - s.k_mark <= stall)
 
     def body(carry):
-        y, ay, y_prev, ay_prev, t, lip, y_best, k, res_best, k_mark, res_mark = carry
+        y, ay, y_prev, ay_prev, t, lip, y_best, ay_best, k, res_best, k_mark, res_mark = carry
         t_next = 0.5 * (1.0 + jnp.sqrt(1.0 + 4.0 * t * t))
         theta = (t - 1.0) / t_next
         z, az = y + theta * (y - y_prev), ay + theta * (ay - ay_prev)
@@ -213,13 +214,14 @@ def _iterate(apply_w, operand, b, sets, scale, state, tol, max_iter, force_scale
         better = res < res_best
         res_best = jnp.where(better, res, res_best)
         halved = res_best <= 0.5 * res_mark
-        return FistaState(y, ay, y_prev, ay_prev, t, lip, jnp.where(better, y, y_best), k + 1, res_best,
+        return FistaState(y, ay, y_prev, ay_prev, t, lip, jnp.where(better, y, y_best), jnp.where(better, ay, ay_best),
+                          k + 1, res_best,
                           jnp.where(halved, k + 1, k_mark), jnp.where(halved, res_best, res_mark))
 
     return jax.lax.while_loop(cond, body, state)
 
 
-def _newton(apply_w, operand, b, sets, scale, y0, k0, res0, tol, max_iter, force_scale):
+def _newton(apply_w, operand, b, sets, scale, y0, ay0, k0, res0, tol, max_iter, force_scale):
     """Semismooth Newton on the natural map R(y) = y - P(y - F(y)), from a stalled FISTA.
 
     Each step solves (I - D (I - S W S)) delta = -R(y) in the least-squares sense (one
@@ -230,29 +232,31 @@ def _newton(apply_w, operand, b, sets, scale, y0, k0, res0, tol, max_iter, force
     (``_ratio``), the face the solution lies on, and the next step solves that face. A
     stalled two-corner landing converges in 2 to 4 steps to a residual of 1e-14. The
     steps are not monotone in the residual: the least one is kept. A step counts as the
-    m + 2 iterations its products with W cost (m those of the GMRES cycle).
+    m + 1 iterations its products with W cost (m those of the GMRES cycle; ``ay0`` is
+    S W S y0, and each step's product gives the next one's).
     """
     proj, amul, c, residual = _maps(apply_w, operand, b, sets, scale, force_scale)
     m = min(NEWTON_KRYLOV, y0.size)
 
     def cond(carry):
-        _, _, res, j, k, j_best = carry
+        _, _, _, res, j, k, j_best = carry
         return (res > tol) & (j < NEWTON_STEPS) & (k < max_iter) & (j - j_best <= NEWTON_PATIENCE)
 
     def body(carry):
-        y, y_best, res_best, j, k, j_best = carry
-        r, d_proj = linearize(y - (amul(y) + c), scale, sets)
+        y, ay, y_best, res_best, j, k, j_best = carry
+        r, d_proj = linearize(y - (ay + c), scale, sets)
         rhs = r - y
         delta, left = _krylov(lambda v: v - d_proj(v - amul(v)), rhs, m)
         inconsistent = jnp.sum(left * left) > NULL_GATE ** 2 * jnp.sum(rhs * rhs)
         y = y + delta
         y = proj(y + jnp.where(inconsistent, _ratio(y, left, scale, sets), 0.0) * left)
-        res = residual(y, amul(y) + c)
+        ay = amul(y)
+        res = residual(y, ay + c)
         better = res < res_best
-        return (y, jnp.where(better, y, y_best), jnp.where(better, res, res_best), j + 1, k + m + 2,
+        return (y, ay, jnp.where(better, y, y_best), jnp.where(better, res, res_best), j + 1, k + m + 1,
                 jnp.where(better, j + 1, j_best))
 
-    _, y, res, _, k, _ = jax.lax.while_loop(cond, body, (y0, y0, res0, jnp.int32(0), k0, jnp.int32(0)))
+    _, _, y, res, _, k, _ = jax.lax.while_loop(cond, body, (y0, ay0, y0, res0, jnp.int32(0), k0, jnp.int32(0)))
     return y, k, res
 
 
