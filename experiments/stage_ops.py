@@ -14,6 +14,7 @@ import glob
 import json
 import os
 import re
+import shutil
 import sys
 import tempfile
 from pathlib import Path
@@ -82,8 +83,7 @@ SCOPES = ["assemble", "detect", "predict", "impacts", "solves", "end", "rupture"
 
 def kernels(*args) -> dict:
     """Fusion kernels of the compiled step per stage scope (``other``: none of them)."""
-    for old in glob.glob(f"{DUMP}/*"):
-        os.remove(old)
+    shutil.rmtree(DUMP, ignore_errors=True)
     jax.jit(jaxdda.step).lower(*args).compile()
     text = Path(glob.glob(f"{DUMP}/*jit_step*after_optimizations.txt")[0]).read_text()
     counts = collections.Counter()

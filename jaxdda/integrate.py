@@ -62,7 +62,8 @@ def impact_time(gap: jax.Array, vn: jax.Array, an: jax.Array, dt: jax.Array, tou
 def exact_impact_time(gap: jax.Array, vn: jax.Array, an: jax.Array, dt: jax.Array, touch: jax.Array, gap_at,
                       passes: int):
     """``impact_time`` on the exact gap along the predicted path: ``gap_at(t)`` (C,) is the
-    gap with each contact's bodies moved to time t (C,) of their free motion.
+    gap with each contact's bodies moved to time t (C,) of their free motion. Returns the
+    time, whether it falls in the step, and the exact gap's rate there.
 
     The linear model gap + vn t + an t^2 / 2 misses the gap's curvature: a disk sliding
     along the inside of a ring closes its gap at second order in its tangential motion
@@ -71,15 +72,22 @@ def exact_impact_time(gap: jax.Array, vn: jax.Array, an: jax.Array, dt: jax.Arra
     gap at the current root (an + 2 (gap_at(t) - linear(t)) / t^2) and solves it again;
     from the end of the step where the linear model finds no root, so an impact it misses
     is found. ``passes`` (static, ``StepOptions.impact_refits``) refits; 0: the start
-    frame's quadratic alone.
+    frame's quadratic alone. A last pass reads the rate at the root.
     """
-    def refit(_, t_hits):  # one pass (a loop, not unrolled: gap_at is a large part of the step's code)
-        at = jnp.where(t_hits[0] > 1e-3 * dt, t_hits[0], dt)  # a root near 0 takes the curvature of the whole step
-        linear = gap + vn * at + 0.5 * an * at * at
-        return impact_time(gap, vn, an + 2.0 * (gap_at(at) - linear) / (at * at), dt, touch)
+    def refit(i, carry):  # one pass (a loop, not unrolled: gap_at is a large part of the step's code)
+        t_hits, _ = carry
+        last = i == passes
+        # A root near 0 takes the curvature of the whole step; the last pass reads the root.
+        at = jnp.where(last, t_hits[0], jnp.where(t_hits[0] > 1e-3 * dt, t_hits[0], dt))
+        value, rate = jax.jvp(gap_at, (at,), (jnp.ones_like(at),))
+        fit_at = jnp.where(last, dt, at)
+        curvature = an + 2.0 * (value - (gap + vn * fit_at + 0.5 * an * fit_at * fit_at)) / (fit_at * fit_at)
+        fitted = impact_time(gap, vn, curvature, dt, touch)
+        return jax.tree.map(lambda old, new: jnp.where(last, old, new), t_hits, fitted), rate
 
     first = impact_time(gap, vn, an, dt, touch)
-    return jax.lax.fori_loop(0, passes, refit, first) if passes else first
+    (t, hits), rate = jax.lax.fori_loop(0, passes + 1, refit, (first, jnp.zeros_like(gap)))
+    return t, hits, rate
 
 
 def mesh_clock(mesh: jax.Array, clock: jax.Array) -> jax.Array:

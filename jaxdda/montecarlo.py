@@ -28,7 +28,7 @@ from jaxdda.scene.builder import Scene
 from jaxdda.scene.padding import stack_scenes
 from jaxdda.scene.validate import check_counts, check_params
 from jaxdda.simulate import MAX_REGROW, with_capacity
-from jaxdda.step import step
+from jaxdda.step.pipeline import step_if
 from jaxdda.types import Capacities, Params
 
 BATCH_BUDGET = 4_000_000  # default batch: scenarios x (bodies + contact slots) per device
@@ -283,15 +283,10 @@ def _program(observables, many, length, mesh, trajectories):
     observables = dict(observables)
 
     def scenario(model, state, params, start, acc, n_valid):
-        info_shape = jax.eval_shape(step, model, state, params)[1]
-
-        def skip(s):
-            return s, jax.tree.map(lambda x: jnp.zeros(x.shape, x.dtype), info_shape)
-
         def body(carry, k):
             s, acc = carry
             valid = k < n_valid
-            s2, info = jax.lax.cond(valid, lambda s: step(model, s, params), skip, s)
+            s2, info = step_if(valid, model, s, params)
             acc = {
                 "observe": obs_mod.update(observables, acc["observe"], s2, start, valid),
                 "converged": acc["converged"] & (info.converged | ~valid),

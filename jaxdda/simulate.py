@@ -15,7 +15,7 @@ from jaxdda.scene.builder import Scene
 from jaxdda.scene.capacity import capacity_class
 from jaxdda.scene.padding import Shape, pad_scene, unpad_state
 from jaxdda.scene.validate import check_counts, check_params
-from jaxdda.step import step
+from jaxdda.step.pipeline import step_if
 from jaxdda.types import Capacities, ContactReport, Model, Params, State, StepInfo
 
 MAX_REGROW = 8
@@ -139,15 +139,10 @@ def _run_chunk(model: Model, state: State, params: Params, n_valid, length: int,
     ``stop`` (a traced bool: pass it always, so that every call shares the program):
     at the first step whose contact solve does not converge, the chunk keeps the state
     from before that step and skips the rest (that step's info is still returned)."""
-    info_shape = jax.eval_shape(step, model, state, params)[1]
-
-    def skip(s):
-        return s, jax.tree.map(lambda x: jnp.zeros(x.shape, x.dtype), info_shape)
-
     def body(carry, k):
         s, halted = carry
         run = (k < n_valid) & ~halted
-        s2, info = jax.lax.cond(run, lambda s: step(model, s, params), skip, s)
+        s2, info = step_if(run, model, s, params)
         failed = run & stop & ~info.converged
         kept = jax.tree.map(lambda old, new: jnp.where(failed, old, new), s, s2)
         return (kept, halted | failed), (s2.time, s2.centroid, s2.rotation, s2.velocity[:, :3], s2.stress, s2.stretch,

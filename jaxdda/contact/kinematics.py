@@ -75,6 +75,7 @@ def _feature_points(c: Contacts, pose_a, pose_b):
     return world(cen_a, turn_a, c.pa), world(cen_b, turn_b, c.qb), world(cen_b, turn_b, c.eb), turn_a, turn_b
 
 
+@jax.jit
 def gap_frame(c: Contacts, centroid: jax.Array, rotation: jax.Array):
     """Signed gap (C,), unit normal (C, 2) and contact point (C, 2) at the given poses.
 
@@ -84,6 +85,7 @@ def gap_frame(c: Contacts, centroid: jax.Array, rotation: jax.Array):
     return gap_frame_at(c, *_poses(c, centroid, rotation))
 
 
+@jax.jit
 def gap_frame_at(c: Contacts, pose_a, pose_b):
     """``gap_frame`` with each contact's own poses of its two bodies (centroid (C, 2),
     rotation (C,)): e.g. the configuration at each contact's impact time."""
@@ -121,6 +123,7 @@ def _strained(strain: jax.Array, x: jax.Array, y: jax.Array):
     return strain[:, 0] * x + half * y, half * x + strain[:, 1] * y
 
 
+@jax.jit
 def gap_change(c: Contacts, centroid: jax.Array, rotation: jax.Array, shift: jax.Array,
                turn: jax.Array, strain: jax.Array | None = None) -> jax.Array:
     """Exact change of the gap (C,) when every body moves by ``shift`` (N, 2), turns by
@@ -136,6 +139,7 @@ def gap_change(c: Contacts, centroid: jax.Array, rotation: jax.Array, shift: jax
                          (m[:, 1, :2], m[:, 1, 2], m[:, 1, 3:]))
 
 
+@jax.jit
 def gap_change_at(c: Contacts, centroid: jax.Array, rotation: jax.Array, motion_a, motion_b) -> jax.Array:
     """``gap_change`` with each contact's own motion of its two bodies from (centroid,
     rotation) (N, ...): (shift (C, 2), turn (C,), strain (C, 3)) per side, e.g. each body's
@@ -173,12 +177,14 @@ def gap_change_at(c: Contacts, centroid: jax.Array, rotation: jax.Array, motion_
     return change
 
 
+@jax.jit
 def jacobians(c: Contacts, normal: jax.Array, point: jax.Array, gap: jax.Array, centroid: jax.Array) -> jax.Array:
     """Contact Jacobians at the bodies' centroids (N, 2): ``jacobians_at`` of centroid[a], centroid[b]."""
     cen = _ends(c, centroid)
     return jacobians_at(c, normal, point, gap, cen[:, 0], cen[:, 1])
 
 
+@jax.jit
 def jacobians_at(c: Contacts, normal: jax.Array, point: jax.Array, gap: jax.Array, centroid_a: jax.Array,
                  centroid_b: jax.Array) -> jax.Array:
     """Contact Jacobians (C, 2 sides, 3, 6): rows (n, tau) of s * [n, tau]^T T(x) (eq. 10),
@@ -245,6 +251,7 @@ def discrete_gradient(jac: jax.Array, c: Contacts, d: jax.Array, change: jax.Arr
     return jac.at[:, :, 0].add(k * along)
 
 
+@jax.jit
 def apply_jacobian(jac: jax.Array, c: Contacts, dofs: jax.Array) -> jax.Array:
     """(C, 3) = J d: relative (normal, shear, rolling) motion at each contact from body dofs
     (N, 6). Both sides in one gather and one product (each is a kernel of its own)."""

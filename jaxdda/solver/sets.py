@@ -127,6 +127,7 @@ def _projection(y, y_q, scale, data_q, sets: ContactSets) -> jax.Array:
     return jnp.where(sets.enabled[:, None], jnp.stack([y_n, y_t, y_m], -1), 0.0)
 
 
+@jax.jit
 def project(y: jax.Array, scale: jax.Array, sets: ContactSets) -> jax.Array:
     """Euclidean projection of scaled unknowns y (C, 3) (p = scale * y) onto X(p).
 
@@ -141,21 +142,21 @@ def project(y: jax.Array, scale: jax.Array, sets: ContactSets) -> jax.Array:
 def linearize(y: jax.Array, scale: jax.Array, sets: ContactSets) -> tuple[jax.Array, Callable[[jax.Array], jax.Array]]:
     """P(y) and its derivative at y as a linear map v -> D v: per contact a 3 x 3 block on
     its own row and one on its partner's (``_projection`` is elementwise over contacts, so
-    three tangents per side give the blocks). The map is a gather and elementwise work,
-    transposable (the adjoint solve of ``fista_newton._implicit`` transposes it)."""
+    six tangents, three per side, give the blocks). The map is a gather and elementwise
+    work, transposable (the adjoint solve of ``fista_newton._implicit`` transposes it)."""
     y_q, data_q = _paired(y, scale, sets)
 
-    def blocks(f, x):  # (C, 3 out, 3 in) of the elementwise map f at x: one tangent per input component
-        column = lambda e: jax.jvp(f, (x,), (jnp.broadcast_to(e, x.shape),))[1]  # noqa: E731
-        return jax.vmap(column, out_axes=-1)(jnp.eye(3, dtype=x.dtype))
+    def column(e):  # the derivative along one of the six components of (y, y_q)
+        return jax.jvp(lambda a, b: _projection(a, b, scale, data_q, sets), (y, y_q),
+                       (jnp.broadcast_to(e[:3], y.shape), jnp.broadcast_to(e[3:], y.shape)))[1]
 
-    own = blocks(lambda a: _projection(a, y_q, scale, data_q, sets), y)
-    theirs = blocks(lambda b: _projection(y, b, scale, data_q, sets), y_q)
+    both = jax.vmap(column, out_axes=-1)(jnp.eye(6, dtype=y.dtype))  # (C, 3 out, 6 in)
+    own, theirs = both[..., :3], both[..., 3:]
 
     def derivative(v):
         return jnp.einsum("cij,cj->ci", own, v) + jnp.einsum("cij,cj->ci", theirs, _partner(v, sets.partner))
 
-    return _projection(y, y_q, scale, data_q, sets), derivative
+    return project(y, scale, sets), derivative  # its trace is the solver's own (a nested jit)
 
 
 # A shear force within this fraction of its bound is on the bound (the solver's iterates

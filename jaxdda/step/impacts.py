@@ -44,6 +44,7 @@ class Impulses(NamedTuple):
     solution: fista_newton.Solution  # the compression's solve
 
 
+@jax.jit
 def cluster_labels(joined: jax.Array, a: jax.Array, b: jax.Array, fixed: jax.Array) -> jax.Array:
     """Per row (C,): the least free body of its cluster (free bodies joined by the ``joined``
     rows; fixed bodies join nothing), n for a row that joins nothing. On integers, so no

@@ -81,6 +81,7 @@ def is_pinned(model: Model) -> bool:
     return model.pin_body.shape[0] > 0
 
 
+@jax.jit
 def respond(flex: Flexibility, jac: jax.Array, c: Contacts, p: jax.Array) -> jax.Array:
     """K^-1 J^T p (N, 6): the bodies' displacement under contact forces p (C, 3) over the
     step (or, with M_imp^-1 and impulses, their change of velocity)."""

@@ -6,6 +6,7 @@
 from __future__ import annotations
 
 import jax
+import jax.numpy as jnp
 
 from jaxdda.connectors import connector_forces
 from jaxdda.step.frame import contact_frame
@@ -45,6 +46,21 @@ def step(model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
         info = step_info(model, frame, res.solutions, integrity, tension, connector_forces(base, params, new_state),
                          report)
     return new_state, info
+
+
+_traced_step = jax.jit(step)  # a nested jit: its trace is cached, so step_if traces the step once
+
+
+def step_if(run: jax.Array, model: Model, state: State, params: Params) -> tuple[State, StepInfo]:
+    """``step`` where ``run`` (a traced bool), else (``state``, a zero info), for a scan
+    whose tail is padding. The info's shapes and the step share one trace (the step's
+    trace is seconds: a second one, for its shapes alone, doubled it)."""
+    info = jax.eval_shape(_traced_step, model, state, params)[1]
+
+    def skip(s):
+        return s, jax.tree.map(lambda x: jnp.zeros(x.shape, x.dtype), info)
+
+    return jax.lax.cond(run, lambda s: _traced_step(model, s, params), skip, state)
 
 
 def rollout(model: Model, state: State, params: Params, steps: int, *, checkpoint: bool = True):

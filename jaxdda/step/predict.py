@@ -68,14 +68,13 @@ def predict(model: Model, state: State, params: Params, ops: Operators, frame: C
         return gap0 + gap_change_at(c, state.centroid, state.rotation, free_path(ops, c, t, 0, accel)[0],
                                     free_path(ops, c, t, 1, accel)[0])
 
-    t_own, hits = exact_impact_time(gap0, v_rel[:, 0], a_rel[:, 0], dt, frame.touch, gap_on_path,
-                                    model.options.impact_refits)
+    t_own, hits, rate = exact_impact_time(gap0, v_rel[:, 0], a_rel[:, 0], dt, frame.touch, gap_on_path,
+                                          model.options.impact_refits)
     live = c.valid & ~opening
     loaded = live & ((frame.p0[:, 0] > 0) | frame.cemented)
     engaged = live & (loaded | hits | (gap0 <= params.margin))
     # A cluster's impact: the first contact that closes approaching (read on the exact path:
     # a touching contact that does not approach strikes nothing).
-    rate = jax.jvp(gap_on_path, (t_own,), (jnp.ones_like(t_own),))[1]
     striking = engaged & hits & ~loaded & (rate < -frame.touch / dt)
     pressing = loaded & (v_rel[:, 0] < -frame.touch / dt)  # a sustained contact approaching at the start
     t_row, t_jump = impact_instants(model, c, engaged, loaded, pressing, striking, t_own,

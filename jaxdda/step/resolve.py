@@ -59,6 +59,7 @@ def impacts_then_contacts(model: Model, state: State, params: Params, ops: Opera
     op_m, diag_m = flexibility(rows.jac, c, ops.m_inv)
     impacts = Problem(op_m, diag_m, rows.v_minus, rows.sets, jnp.zeros_like(p0), ops.momentum)
 
+    @jax.jit  # traced once: for the shapes below, and in the loop's second phase
     def contacts(p1):
         jump = velocity_jump(model, params, ops, frame, pred, rows, op_m, p1)
         return (jump, *contact_problem(model, state, params, ops, frame, pred, rows, jump))
