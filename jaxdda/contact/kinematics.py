@@ -172,9 +172,8 @@ def gap_change_at(c: Contacts, centroid: jax.Array, rotation: jax.Array, motion_
     strained = jnp.any(strain != 0, -1)
     dnx, dny = jnp.where(strained, uy - nx, dnx), jnp.where(strained, -ux - ny, dny)
     line_change = dnx * (rx + dx) + dny * (ry + dy) + (nx * dx + ny * dy) - d_ra
-    change = jnp.where(c.btype == B_LINE, line_change,
-                       jnp.where(c.btype == B_HOLE, d_rb - d_ra - dist_change, dist_change - d_ra - d_rb))
-    return change
+    return jnp.where(c.btype == B_LINE, line_change,
+                     jnp.where(c.btype == B_HOLE, d_rb - d_ra - dist_change, dist_change - d_ra - d_rb))
 
 
 @jax.jit
@@ -255,7 +254,7 @@ def discrete_gradient(jac: jax.Array, c: Contacts, d: jax.Array, change: jax.Arr
 def apply_jacobian(jac: jax.Array, c: Contacts, dofs: jax.Array) -> jax.Array:
     """(C, 3) = J d: relative (normal, shear, rolling) motion at each contact from body dofs
     (N, 6). Both sides in one gather and one product (each is a kernel of its own)."""
-    return jnp.einsum("ckij,ckj->ci", jac, dofs[jnp.stack([c.a, c.b], -1)])
+    return jnp.einsum("ckij,ckj->ci", jac, _ends(c, dofs))
 
 
 def apply_jacobian_t(jac: jax.Array, c: Contacts, forces: jax.Array, n_bodies: int) -> jax.Array:
