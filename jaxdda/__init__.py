@@ -1,12 +1,19 @@
 """jaxdda: differentiable 2D discontinuous deformation analysis (PB-DDA) in JAX."""
 import os
 
-# Bit-identical results from run to run: XLA:CPU's multi-threaded Eigen kernels sum in an
-# order that depends on the load of the machine (last bits: 1e-19 m, 1e-11 Pa), so they
-# are turned off unless the user set the flag (no measurable cost: the engine's products
-# are small). XLA reads it when jax starts its backend, i.e. at the first computation.
-if "xla_cpu_multi_thread_eigen" not in os.environ.get("XLA_FLAGS", ""):
-    os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} --xla_cpu_multi_thread_eigen=false".strip()
+# XLA:CPU settings the engine is measured with, unless the user set them. XLA reads
+# XLA_FLAGS when jax starts its backend (the first computation), so they take effect where
+# jaxdda is imported before anything is computed.
+# - multi_thread_eigen off: bit-identical results from run to run. The multi-threaded Eigen
+#   kernels sum in an order that depends on the load of the machine (last bits: 1e-19 m,
+#   1e-11 Pa); the engine's products are small, so the threads buy nothing measurable.
+# - fusion_emitters off: the step is about a thousand small fused kernels, each compiled
+#   as its own LLVM module; XLA:CPU's MLIR fusion emitters compile them about 1.6 times
+#   slower than its classic emitters and run them no faster (rockfall step: compile 23 s
+#   -> 14 s, one step 2.0 -> 1.5 ms; experiments/results/step_budget.md).
+_XLA_DEFAULTS = {"xla_cpu_multi_thread_eigen": "false", "xla_cpu_use_fusion_emitters": "false"}
+_flags = os.environ.get("XLA_FLAGS", "")
+os.environ["XLA_FLAGS"] = " ".join([_flags] + [f"--{k}={v}" for k, v in _XLA_DEFAULTS.items() if k not in _flags]).strip()
 
 import jax  # noqa: E402
 
