@@ -22,7 +22,9 @@ class Prediction(NamedTuple):
 
     accel: jax.Array  # (N, 6) the free acceleration (loads and prior forces)
     t_row: jax.Array  # (C,) the instant each contact takes part in the impacts at
-    t_jump: jax.Array  # (C,) the instant its cluster's velocities jump at (its first t*)
+    t_jump: jax.Array  # (C,) its cluster's first t*: the instant its velocities jump at, unless held
+    cluster: jax.Array  # (C,) its impact cluster's label (``cluster_labels``)
+    approach: jax.Array  # (C,) a sustained contact's approach speed at the start, max(-v_n, 0)
     isolated: jax.Array  # (C,) bool: a contact of an isolated pair (exact event)
     engaged: jax.Array  # (C,) bool: loaded, cemented, closed, or closing on the free path
     loaded: jax.Array  # (C,) bool: carried force last step, or cemented, and not opening
@@ -76,32 +78,31 @@ def predict(model: Model, state: State, params: Params, ops: Operators, frame: C
     # A cluster's impact: the first contact that closes approaching (read on the exact path:
     # a touching contact that does not approach strikes nothing).
     striking = engaged & hits & ~loaded & (rate < -frame.touch / dt)
-    pressing = loaded & (v_rel[:, 0] < -frame.touch / dt)  # a sustained contact approaching at the start
-    t_row, t_jump = impact_instants(model, c, engaged, loaded, pressing, striking, t_own,
-                                    model.options.impact_instants)
-    return Prediction(accel=accel, t_row=t_row, t_jump=t_jump, isolated=isolated_pairs(model, c, engaged, loaded),
+    t_row, t_jump, cluster = impact_instants(model, c, engaged, loaded, striking, t_own,
+                                             model.options.impact_instants)
+    return Prediction(accel=accel, t_row=t_row, t_jump=t_jump, cluster=cluster,
+                      approach=jnp.where(loaded, jnp.maximum(-v_rel[:, 0], 0.0), 0.0),
+                      isolated=isolated_pairs(model, c, engaged, loaded),
                       engaged=engaged, loaded=loaded, p_prior=p_prior, push0=push0)
 
 
-def impact_instants(model: Model, c, engaged: jax.Array, loaded: jax.Array, pressing: jax.Array,
-                    striking: jax.Array, t_own: jax.Array, at_instants: bool = True) -> tuple[jax.Array, jax.Array]:
-    """Per contact: its cluster's impact instant t*, the first of its ``striking``
-    contacts (0 where none strikes), at which its velocities jump; and the instant its
-    impact rows are read at: t*, or 0 for a cluster that carries a sustained force
-    (Moreau: its velocities at t* are not known without the forces before it, so the jump
-    is computed from the step's start, and still takes effect at t*). A cluster one of
-    whose sustained contacts is ``pressing`` (approaches at the start) jumps at 0: moving
-    on with its old velocities until t* would drive that contact into overlap
-    (docs/design.md, "Clock"). Without ``at_instants`` (static) every cluster jumps at 0."""
+def impact_instants(model: Model, c, engaged: jax.Array, loaded: jax.Array, striking: jax.Array,
+                    t_own: jax.Array, at_instants: bool = True) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """Per contact: the instant its impact rows are read at; its cluster's impact instant
+    t*, the first of its ``striking`` contacts (0 where none strikes), at which its
+    velocities jump (unless ``jump.held_clusters``); and its cluster's label. The rows are
+    read at t*, or at 0 for a cluster that carries a sustained force (Moreau: its
+    velocities at t* are not known without the forces before it, so the jump is computed
+    from the step's start, and still takes effect at t*: docs/design.md, "Clock").
+    Without ``at_instants`` (static) every cluster jumps at 0."""
     n = model.n_bodies
     label = cluster_labels(engaged, c.a, c.b, model.fixed)
     first = jax.ops.segment_min(jnp.where(striking, t_own, jnp.inf), label, n + 1)[label]
     if not at_instants:  # Moreau: every impact at the step's start
         first = jnp.where(jnp.isfinite(first), 0.0, first)
     carrying = jax.ops.segment_max(loaded.astype(jnp.int32), label, n + 1)[label] > 0
-    held = jax.ops.segment_max(pressing.astype(jnp.int32), label, n + 1)[label] > 0
-    t_jump = jnp.where(engaged & jnp.isfinite(first) & ~held, first, 0.0)
-    return jnp.where(carrying, 0.0, t_jump), t_jump
+    t_jump = jnp.where(engaged & jnp.isfinite(first), first, 0.0)
+    return jnp.where(carrying, 0.0, t_jump), t_jump, label
 
 
 def isolated_pairs(model: Model, c, engaged: jax.Array, loaded: jax.Array) -> jax.Array:
