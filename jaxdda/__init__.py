@@ -13,9 +13,22 @@ import os
 #   -> 14 s, one step 2.0 -> 1.5 ms; experiments/results/step_budget.md).
 _XLA_DEFAULTS = {"xla_cpu_multi_thread_eigen": "false", "xla_cpu_use_fusion_emitters": "false"}
 _flags = os.environ.get("XLA_FLAGS", "")
-os.environ["XLA_FLAGS"] = " ".join([_flags] + [f"--{k}={v}" for k, v in _XLA_DEFAULTS.items() if k not in _flags]).strip()
+_unset = [f"--{k}={v}" for k, v in _XLA_DEFAULTS.items() if k not in _flags]
+os.environ["XLA_FLAGS"] = " ".join([_flags] + _unset).strip()
 
 import jax  # noqa: E402
+
+try:
+    from jax._src.xla_bridge import backends_are_initialized as _started
+except ImportError:  # another jax: no warning
+    def _started():
+        return False
+if _unset and _started():
+    import warnings
+
+    warnings.warn(f"jaxdda was imported after JAX started its backend, so XLA_FLAGS {' '.join(_unset)} do not "
+                  "apply: the step compiles about 1.6x slower, and runs may differ in their last bits. "
+                  "Import jaxdda before computing with JAX, or set XLA_FLAGS yourself.", stacklevel=2)
 
 jax.config.update("jax_enable_x64", True)  # forces of 1e7 N next to errors of 1e-3 N
 
