@@ -623,32 +623,34 @@ def read_ntdda(geometry_path, analysis_path=None, *, tensile: bool = False) -> d
     Errors are SceneErrors naming the file, line, element and field."""
     geo_path = Path(geometry_path)
     geo = _geometry_ddaml(geo_path) if _file_type(geo_path) == "ddaml" else _geometry_plain(geo_path)
-    ana = None
-    if analysis_path is not None:
-        ana_path = Path(analysis_path)
-        ana = _analysis_ddaml(ana_path) if _file_type(ana_path) == "ddaml" else _analysis_plain(ana_path)
-
     blocks = _cut(geo)
     w0 = _domain_scale(geo.joints)
-    tol = 1e-9 * w0
-    material = _materials_of(geo, blocks, tol)
+    material = _materials_of(geo, blocks, 1e-9 * w0)
     joint_type = {k: j.kind for k, j in enumerate(geo.joints)}
+    scene = _geometry_scene(geo, blocks, material, joint_type, w0)
+    if analysis_path is None:
+        scene["materials"], scene["joints"] = {}, {}
+        return _ordered(scene)
+    ana_path = Path(analysis_path)
+    ana = _analysis_ddaml(ana_path) if _file_type(ana_path) == "ddaml" else _analysis_plain(ana_path)
+    _check_defined(geo, ana, material, joint_type)
+    materials, g = _materials(ana, material, scene["bodies"])
+    joints = _joints(ana, blocks, joint_type, tensile)
+    _load_histories(geo, ana, scene["loads"])
+    _bolt_properties(geo, ana, scene["connectors"])
+    scene["settings"] = {"dt": ana.dt, "steps": ana.steps, "gravity": [0.0, -g], "dynamic": ana.dynamic}
+    scene["materials"], scene["joints"] = materials, joints
+    return _ordered(scene)
 
+
+def _geometry_scene(geo: _Geometry, blocks, material: list[int], joint_type: dict, w0: float) -> dict:
+    """The scene's geometry: its blocks as bodies, fixed, load and measured points, bolts."""
     def block_at(item: _Item, point, what: str) -> int:
         k = _block_of(blocks, point)
         if k is None:
             raise SceneError(f"{item.where}: the {what} {list(map(float, point))} lies in no block")
         return k
 
-    scene: dict = {"name": geo_path.stem}
-    bodies = []
-    for i, b in enumerate(blocks):
-        bodies.append({"type": "polygon", "vertices": b.vertices.tolist(), "material": f"material{material[i]}",
-                       "joints": [f"joint{joint_type[int(line)]}" for line in b.edge_lines], "fixed": False})
-    scene["fixed_points"] = [{"body": k, "at": at} for k, at, _ in _fixed_points(geo, blocks, w0, tol)]
-    scene["loads"] = [{"body": block_at(p, p.values, "load point"), "at": list(p.values)} for p in geo.loads]
-    scene["measured_points"] = [{"body": block_at(p, p.values, "measured point"), "at": list(p.values)}
-                                for p in geo.measured]
     connectors = []
     for bolt in geo.bolts:
         a, b = bolt.values[:2], bolt.values[2:]
@@ -656,25 +658,37 @@ def read_ntdda(geometry_path, analysis_path=None, *, tensile: bool = False) -> d
         if ka == kb:
             raise SceneError(f"{bolt.where}: both ends of the bolt lie in block {ka}; a bolt joins two blocks")
         connectors.append({"type": "spring", "body_a": ka, "body_b": kb, "at_a": list(a), "at_b": list(b)})
-    scene["connectors"] = connectors
-    scene["bodies"] = bodies
-    if ana is None:
-        scene["materials"], scene["joints"] = {}, {}
-        return _ordered(scene)
+    return {
+        "name": Path(geo.path).stem,
+        "bodies": [{"type": "polygon", "vertices": b.vertices.tolist(), "material": f"material{material[i]}",
+                    "joints": [f"joint{joint_type[int(line)]}" for line in b.edge_lines], "fixed": False}
+                   for i, b in enumerate(blocks)],
+        "fixed_points": [{"body": k, "at": at} for k, at, _ in _fixed_points(geo, blocks, w0, 1e-9 * w0)],
+        "loads": [{"body": block_at(p, p.values, "load point"), "at": list(p.values)} for p in geo.loads],
+        "measured_points": [{"body": block_at(p, p.values, "measured point"), "at": list(p.values)}
+                            for p in geo.measured],
+        "connectors": connectors,
+    }
 
-    # materials and gravity
-    used = sorted(set(material))
-    types = sorted(set(joint_type.values()))
-    for m in used:
+
+def _check_defined(geo: _Geometry, ana: _Analysis, material: list[int], joint_type: dict) -> None:
+    """Every block material and joint type the geometry uses is defined in the analysis."""
+    for m in sorted(set(material)):
         if not 1 <= m <= len(ana.materials):
             where = next((line.where for line in geo.matlines if line.kind == m), geo.path)
             raise SceneError(f"{where}: block material {m} is not defined in {ana.path} "
                              f"({len(ana.materials)} <Blockmaterial> / block materials)")
-    for t in types:
+    for t in sorted(set(joint_type.values())):
         if not 1 <= t <= len(ana.joints):
             where = next(j.where for j in geo.joints if j.kind == t)
             raise SceneError(f"{where}: joint type {t} is not defined in {ana.path} "
                              f"({len(ana.joints)} <Jointproperties> / joint materials)")
+
+
+def _materials(ana: _Analysis, material: list[int], bodies: list[dict]) -> tuple[dict, float]:
+    """The block materials and the gravity their unit weights give (one for all the used
+    ones); each body's initial stress and velocity from its material (set on ``bodies``)."""
+    used = set(material)
     g = None
     materials = {}
     for m, mat in enumerate(ana.materials, 1):
@@ -707,8 +721,12 @@ def read_ntdda(geometry_path, analysis_path=None, *, tensile: bool = False) -> d
             body["velocity"] = list(mat["velocity"][:2])
         if mat["velocity"][2]:
             body["angular_velocity"] = mat["velocity"][2]
+    return materials, g[0]
 
-    # joints: cohesion (and tensile) as a force per interface
+
+def _joints(ana: _Analysis, blocks, joint_type: dict, tensile: bool) -> dict:
+    """The joint materials: friction angle to coefficient, cohesion (and tensile strength)
+    as a force per interface of the joint type's mean length."""
     lengths = _interface_lengths(blocks)
     joints = {}
     for t, (phi, cohesion, tension, w) in enumerate(ana.joints, 1):
@@ -723,42 +741,44 @@ def read_ntdda(geometry_path, analysis_path=None, *, tensile: bool = False) -> d
         length = float(np.mean(shared)) if shared else (float(np.mean(edges)) if edges else 0.0)
         joints[f"joint{t}"] = {"friction": math.tan(math.radians(phi)), "cohesion": cohesion * length,
                                "tensile": tension * length if tensile else 0.0, "restitution": 0.0}
+    return joints
 
-    # loads
+
+def _load_histories(geo: _Geometry, ana: _Analysis, loads: list[dict]) -> None:
+    """Each load point's force history (set on ``loads``); the plain format has none."""
     if ana.plain:
         if geo.loads:
             warnings.warn(f"{ana.path}: the plain analysis format has no load histories; ntdda applies no force at "
                           f"the {len(geo.loads)} load points")
-        for load in scene["loads"]:
+        for load in loads:
             load["history"] = [[0.0, 0.0, 0.0]]
-    else:
-        if len(ana.loads) != len(geo.loads):
-            raise SceneError(f"{ana.path}: {len(ana.loads)} <Loadpoint> histories for the {len(geo.loads)} load "
-                             f"points of {geo.path}")
-        end = ana.steps * ana.dt
-        for load, item in zip(scene["loads"], ana.loads):
-            rows = [list(r) for r in item.values]
-            times = [r[0] for r in rows]
-            if any(b < a for a, b in zip(times, times[1:])):
-                raise SceneError(f"{item.where}: the record times must not decrease, got {times}")
-            (t0, *f0), (t1, *f1) = rows[-2], rows[-1]
-            if t1 < end and t1 > t0 and f0 != f1:  # ntdda extrapolates the last segment (df09)
-                rows.append([end] + [a + (b - a) * (end - t0) / (t1 - t0) for a, b in zip(f0, f1)])
-            load["history"] = rows
+        return
+    if len(ana.loads) != len(geo.loads):
+        raise SceneError(f"{ana.path}: {len(ana.loads)} <Loadpoint> histories for the {len(geo.loads)} load "
+                         f"points of {geo.path}")
+    end = ana.steps * ana.dt
+    for load, item in zip(loads, ana.loads):
+        rows = [list(r) for r in item.values]
+        times = [r[0] for r in rows]
+        if any(b < a for a, b in zip(times, times[1:])):
+            raise SceneError(f"{item.where}: the record times must not decrease, got {times}")
+        (t0, *f0), (t1, *f1) = rows[-2], rows[-1]
+        if t1 < end and t1 > t0 and f0 != f1:  # ntdda extrapolates the last segment (df09)
+            rows.append([end] + [a + (b - a) * (end - t0) / (t1 - t0) for a, b in zip(f0, f1)])
+        load["history"] = rows
 
-    # bolts
-    if connectors:
-        if ana.bolt is None:
-            raise SceneError(f"{ana.path}: {len(connectors)} bolts in {geo.path} but no <Boltproperties>")
-        stiffness, _, pretension, w = ana.bolt
-        if stiffness <= 0:
-            raise SceneError(f"{w}: the bolt stiffness must be > 0, got {stiffness}")
-        for conn in connectors:
-            conn["stiffness"], conn["pretension"] = stiffness, pretension
 
-    scene["settings"] = {"dt": ana.dt, "steps": ana.steps, "gravity": [0.0, -g[0]], "dynamic": ana.dynamic}
-    scene["materials"], scene["joints"] = materials, joints
-    return _ordered(scene)
+def _bolt_properties(geo: _Geometry, ana: _Analysis, connectors: list[dict]) -> None:
+    """The bolts' stiffness and pretension (set on ``connectors``)."""
+    if not connectors:
+        return
+    if ana.bolt is None:
+        raise SceneError(f"{ana.path}: {len(connectors)} bolts in {geo.path} but no <Boltproperties>")
+    stiffness, _, pretension, w = ana.bolt
+    if stiffness <= 0:
+        raise SceneError(f"{w}: the bolt stiffness must be > 0, got {stiffness}")
+    for conn in connectors:
+        conn["stiffness"], conn["pretension"] = stiffness, pretension
 
 
 def _ordered(scene: dict) -> dict:
