@@ -197,28 +197,11 @@ def polygon_polygon(model: Model, verts: jax.Array, i: jax.Array, j: jax.Array, 
     touch = jnp.maximum(TOUCH_FRACTION * size, margin)
     front_ab = _held(s_ab, t_ab, len_b, _inside(va, vb, vbn, real_b), real_b, touch)  # (P, Va, Eb)
     front_ba = _held(s_ba, t_ba, len_a, _inside(vb, va, van, real_a), real_a, touch)  # (P, Vb, Ea)
-    pair_mask = ma[:, :, None] & mb[:, None, :]
     # Corners closer than the detection distance, or overlapping (then they may be farther
     # apart, each just past the end of the other's edge), form a vertex-vertex contact.
-    near = pair_mask & (jnp.linalg.norm(va[:, :, None] - vb[:, None, :], axis=-1) <= near_dist[:, None, None] - pen)
-
-    def gather_e(x, idx):  # x (P, V, E), pick column idx (P, E-index per column)
-        return jnp.take_along_axis(x, jnp.broadcast_to(idx[:, None, :], x.shape), axis=2)
-
-    def gather_v(x, idx):  # pick row idx (P, V) -> (P, V, E)
-        return jnp.take_along_axis(x, jnp.broadcast_to(idx[:, :, None], x.shape), axis=1)
-
-    # Vertex-vertex (a of A near b of B): four candidate vertex-edge pairs; keep the best.
-    # An edge inside a meshed block is no candidate, nor one whose line the vertex is
-    # behind from outside its polygon (then it is in front of the other edge at the corner).
-    swap = lambda x: jnp.swapaxes(x, 1, 2)
-    cand = jnp.stack([
-        jnp.where(_take1(eb, pb)[:, None, :] & gather_e(front_ab, pb), gather_e(c_ab, pb), -jnp.inf),  # a on B's edge ending at b
-        jnp.where(eb[:, None, :] & front_ab, c_ab, -jnp.inf),                                          # a on B's edge starting at b
-        jnp.where(_take1(ea, pa)[:, :, None] & swap(gather_e(front_ba, pa)), swap(gather_e(c_ba, pa)), -jnp.inf),  # b on A's edge ending at a
-        jnp.where(ea[:, :, None] & swap(front_ba), swap(c_ba), -jnp.inf),                              # b on A's edge starting at a
-    ], -1)  # (P, Va, Vb, 4)
-    winner = jnp.where(jnp.max(cand, -1) > -jnp.inf, jnp.argmax(cand, -1), -1)
+    near = (ma[:, :, None] & mb[:, None, :]
+            & (jnp.linalg.norm(va[:, :, None] - vb[:, None, :], axis=-1) <= near_dist[:, None, None] - pen))
+    winner = _vertex_vertex_winner(ea, eb, pa, pb, front_ab, front_ba, c_ab, c_ba)
 
     wedge_tol = (jnp.sin(jnp.minimum(turn, 0.5 * jnp.pi)) + WEDGE_TOL)[:, None, None]
 
@@ -236,19 +219,50 @@ def polygon_polygon(model: Model, verts: jax.Array, i: jax.Array, j: jax.Array, 
                 & (s >= pen) & front & (clear >= -wedge_tol))
 
     # A's vertex a on B's edge e = (b_e -> b_{e+1}).
-    near_end_ab = gather_e(near, nb)
-    win_end_ab = gather_e(winner, nb)
+    near_end_ab = _gather_e(near, nb)
+    win_end_ab = _gather_e(winner, nb)
     vv_ab = (near & (winner == 1)) | (near_end_ab & (win_end_ab == 0))
     mask_ab = ma[:, :, None] & eb[:, None, :]
     ok_ab = interior(s_ab, t_ab, c_ab, front_ab, near, near_end_ab, mask_ab, len_b) | (vv_ab & mask_ab)
     # B's vertex b on A's edge f = (a_f -> a_{f+1}).
     near_t, win_t = jnp.swapaxes(near, 1, 2), jnp.swapaxes(winner, 1, 2)  # (P, Vb, Va)
-    near_end_ba = gather_e(near_t, na)
-    win_end_ba = gather_e(win_t, na)
+    near_end_ba = _gather_e(near_t, na)
+    win_end_ba = _gather_e(win_t, na)
     mask_ba = mb[:, :, None] & ea[:, None, :]
     vv_ba = (near_t & (win_t == 3)) | (near_end_ba & (win_end_ba == 2))
     ok_ba = interior(s_ba, t_ba, c_ba, front_ba, near_t, near_end_ba, mask_ba, len_a) | (vv_ba & mask_ba)
+    return _polygon_records(model, i, j, na, nb, ok_ab, ok_ba)
 
+
+def _gather_e(x: jax.Array, idx: jax.Array) -> jax.Array:
+    """x (P, V, E): column idx (P, E) of each row, (P, V, E)."""
+    return jnp.take_along_axis(x, jnp.broadcast_to(idx[:, None, :], x.shape), axis=2)
+
+
+def _vertex_vertex_winner(ea, eb, pa, pb, front_ab, front_ba, c_ab, c_ba) -> jax.Array:
+    """(P, Va, Vb): of two corners a of A and b of B, which of the four vertex-edge
+    candidates is kept (Shi's rule made explicit: the edge line that best separates the two
+    wedges, largest clearance ``c``; ties to the first): 0, a on B's edge ending at b; 1,
+    a on B's edge starting at b; 2, b on A's edge ending at a; 3, b on A's edge starting at
+    a; -1, none. An edge inside a meshed block is no candidate, nor one whose line the
+    vertex is behind from outside its polygon (not ``front``: then it is in front of the
+    other edge at the corner)."""
+    def swap(x):
+        return jnp.swapaxes(x, 1, 2)
+
+    cand = jnp.stack([
+        jnp.where(_take1(eb, pb)[:, None, :] & _gather_e(front_ab, pb), _gather_e(c_ab, pb), -jnp.inf),
+        jnp.where(eb[:, None, :] & front_ab, c_ab, -jnp.inf),
+        jnp.where(_take1(ea, pa)[:, :, None] & swap(_gather_e(front_ba, pa)), swap(_gather_e(c_ba, pa)), -jnp.inf),
+        jnp.where(ea[:, :, None] & swap(front_ba), swap(c_ba), -jnp.inf),
+    ], -1)  # (P, Va, Vb, 4)
+    return jnp.where(jnp.max(cand, -1) > -jnp.inf, jnp.argmax(cand, -1), -1)
+
+
+def _polygon_records(model: Model, i, j, na, nb, ok_ab, ok_ba):
+    """The slots (P, 2 V^2) of polygons i (A) and j (B): A's vertices on B's edges, then
+    B's on A's, and which hold a contact (``ok_ab`` (P, Va, Eb), ``ok_ba`` (P, Vb, Ea))."""
+    v_max = model.max_vertices
     la, lb = model.local_vertices[i], model.local_vertices[j]
     vi = jnp.arange(v_max)
     rec_ab = _record(i[:, None, None], j[:, None, None], 0.0, la[:, :, None, :], B_LINE, 0.0,
@@ -256,6 +270,6 @@ def polygon_polygon(model: Model, verts: jax.Array, i: jax.Array, j: jax.Array, 
     rec_ba = _record(j[:, None, None], i[:, None, None], 0.0, lb[:, :, None, :], B_LINE, 0.0,
                      la[:, None, :, :], _take(la, na)[:, None, :, :], v_max * v_max + vi[:, None] * v_max + vi[None, :],
                      vi[None, :])
-    flat = lambda x: x.reshape((x.shape[0], v_max * v_max) + x.shape[3:])
+    flat = lambda x: x.reshape((x.shape[0], v_max * v_max) + x.shape[3:])  # noqa: E731
     records = jax.tree.map(lambda x, y: jnp.concatenate([flat(x), flat(y)], 1), rec_ab, rec_ba)
     return records, jnp.concatenate([flat(ok_ab), flat(ok_ba)], 1)

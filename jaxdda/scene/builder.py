@@ -5,7 +5,7 @@ import copy
 import dataclasses
 import functools
 import inspect
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import jax.numpy as jnp
 import numpy as np
@@ -114,6 +114,43 @@ def _recorded(method):
         return result
 
     return wrapper
+
+
+class _BodyArrays(NamedTuple):
+    """The added bodies' per-body arrays that the model and the start state share."""
+
+    n: int
+    kinds: np.ndarray  # (N,) int32
+    fixed: np.ndarray  # (N,) bool
+    bound: np.ndarray  # (N,) bounding radius
+    centers: np.ndarray  # (N, 2)
+    velocity: np.ndarray  # (N, 6)
+    local: np.ndarray  # (N, V, 2) polygon vertices about the centroid (padded)
+    mask: np.ndarray  # (N, V) real vertices
+    edges: np.ndarray  # (N, V) edges that are contact surfaces
+    edge_material: np.ndarray  # (N, V) an edge's joint material (index into names), -1 for none
+
+
+def _body_arrays(bodies: list, names: list[str]) -> _BodyArrays:
+    n = len(bodies)
+    v_max = max([len(b.local) for b in bodies] + [1])
+    local = np.zeros((n, v_max, 2))
+    mask = np.zeros((n, v_max), bool)
+    edges = np.zeros((n, v_max), bool)
+    edge_material = -np.ones((n, v_max), np.int32)
+    for i, b in enumerate(bodies):
+        local[i, : len(b.local)] = b.local
+        mask[i, : len(b.local)] = True
+        edges[i, : len(b.local)] = True if b.edges is None else b.edges
+        for k, m in enumerate(b.edge_materials or []):
+            edge_material[i, k] = -1 if m is None else names.index(m)
+    velocity = np.zeros((n, NDOF))
+    velocity[:, :2] = [b.velocity for b in bodies]
+    velocity[:, 2] = [b.omega for b in bodies]
+    return _BodyArrays(n=n, kinds=np.array([b.kind for b in bodies], np.int32),
+                       fixed=np.array([b.fixed for b in bodies], bool), bound=np.array([_body_size(b) for b in bodies]),
+                       centers=np.array([b.center for b in bodies]), velocity=velocity, local=local, mask=mask,
+                       edges=edges, edge_material=edge_material)
 
 
 class SceneBuilder:
@@ -533,10 +570,33 @@ class SceneBuilder:
 
     def build(self) -> "Scene":
         """Validate everything and assemble the scene."""
+        labels, size, margin = self._validated()
+        names = list(self._materials)
+        tables = self._contact_tables(names)
+        g = np.asarray(self.gravity, float)
+        body = _body_arrays(self._bodies, names)
+        model = self._model(body, names, g, margin)
+        key, force = zeros_contact_memory(model.capacity.contacts)
+        state = State(time=jnp.asarray(0.0), origin=jnp.asarray(body.centers), displacement=jnp.zeros((body.n, 2)),
+                      rotation=jnp.zeros(body.n), stretch=jnp.broadcast_to(jnp.eye(2), (body.n, 2, 2)),
+                      stress=jnp.asarray(np.array([b.stress for b in self._bodies])),
+                      velocity=jnp.asarray(body.velocity), contact_key=key, contact_force=force,
+                      joint_integrity=jnp.zeros((1,)))
+        params = self._params(g, tables, margin)
+        if np.any(tables["tensile"] > 0):
+            model, state = cement.with_joints(model, state, params, tol=1e-9 * size)
+        settings = {"dt": self.dt, "gravity": tuple(g.tolist()), "tol": self.tol,
+                    "max_iter": self.max_iter, "margin": self.margin, "dynamic": self.dynamic,
+                    "capacities": dict(self.capacities)}
+        return Scene(model, state, params, tuple(labels), tuple(names), self.name,
+                     recipe=(copy.deepcopy(settings), tuple(self._recipe)), measured=tuple(self._measured))
+
+    def _validated(self) -> tuple[list[str], float, float]:
+        """Check the scene as a whole (bodies, settings, no overlap at the start, loads on
+        their bodies); its bodies' labels, its size and the contact margin d0."""
         if not self._bodies:
             raise SceneError("scene: no bodies were added")
         self._check_settings()
-        g = np.asarray(self.gravity, float)
         labels = [_body_label(b, i) for i, b in enumerate(self._bodies)]
         shapes = [self._world_shape(b) for b in self._bodies]
         size = _scene_size(shapes)
@@ -544,84 +604,59 @@ class SceneBuilder:
         for k, (body, offset, *_) in enumerate(self._loads):  # a point given away from the centroid: on the body
             if np.any(offset != 0):
                 self._check_on_body(f"load {k}", "at", self._bodies[body].center + offset, body)
-        margin = 1e-6 * size if self.margin is None else float(self.margin)
+        return labels, size, 1e-6 * size if self.margin is None else float(self.margin)
 
-        names = list(self._materials)
-        mat_index = {m: k for k, m in enumerate(names)}
-        tables = self._contact_tables(names)
-        n = len(self._bodies)
-        v_max = max([len(b.local) for b in self._bodies] + [1])
-        local = np.zeros((n, v_max, 2))
-        mask = np.zeros((n, v_max), bool)
-        edges = np.zeros((n, v_max), bool)
-        edge_material = -np.ones((n, v_max), np.int32)
-        for i, b in enumerate(self._bodies):
-            local[i, : len(b.local)] = b.local
-            mask[i, : len(b.local)] = True
-            edges[i, : len(b.local)] = True if b.edges is None else b.edges
-            for k, m in enumerate(b.edge_materials or []):
-                edge_material[i, k] = -1 if m is None else names.index(m)
-        kinds = np.array([b.kind for b in self._bodies], np.int32)
-        bound = np.array([_body_size(b) for b in self._bodies])
-        fixed = np.array([b.fixed for b in self._bodies], bool)
-        centers = np.array([b.center for b in self._bodies])
-        velocity = np.zeros((n, NDOF))
-        velocity[:, :2] = [b.velocity for b in self._bodies]
-        velocity[:, 2] = [b.omega for b in self._bodies]
+    def _model(self, body: "_BodyArrays", names: list[str], g: np.ndarray, margin: float) -> Model:
+        """The scene's Model: body geometry and kinds, loads, connectors, pins, dof groups,
+        and the buffers' first capacities."""
+        bodies = self._bodies
         knots = _load_knots([ld[4] for ld in self._loads])
-        capacity = initial_capacities(kinds, fixed, centers, local, mask, bound, velocity, self.dt, g, margin)
+        capacity = initial_capacities(body.kinds, body.fixed, body.centers, body.local, body.mask, body.bound,
+                                      body.velocity, self.dt, g, margin)
         capacity = dataclasses.replace(capacity, **{k: max(int(v), getattr(capacity, k))
                                                     for k, v in self.capacities.items()})
-        model = Model(
-            kind=jnp.asarray(kinds), fixed=jnp.asarray(fixed),
-            radius=jnp.asarray([b.radius for b in self._bodies], float),
-            inner_radius=jnp.asarray([b.inner_radius for b in self._bodies], float),
-            local_vertices=jnp.asarray(local), vertex_mask=jnp.asarray(mask), edge_mask=jnp.asarray(edges),
-            edge_material=jnp.asarray(edge_material),
-            n_vertices=jnp.asarray(mask.sum(1).astype(np.int32)),
-            area=jnp.asarray([b.area for b in self._bodies]), polar_moment=jnp.asarray([b.polar for b in self._bodies]),
-            bound_radius=jnp.asarray(bound),
-            gravity_scale=jnp.asarray([1.0 if b.gravity else 0.0 for b in self._bodies]),
-            material=jnp.asarray([mat_index[b.material] for b in self._bodies], jnp.int32),
-            second_moment=jnp.asarray(np.array([b.moments for b in self._bodies])),
-            plane_strain=jnp.asarray([b.plane_strain for b in self._bodies]),
-            dof_projector=jnp.asarray(np.array([_projector(b) for b in self._bodies])),
-            dof_basis=jnp.asarray(np.array([_basis(b) for b in self._bodies])),
-            mesh=jnp.asarray(np.array([b.mesh for b in self._bodies], np.int32)),
+        return Model(
+            kind=jnp.asarray(body.kinds), fixed=jnp.asarray(body.fixed),
+            radius=jnp.asarray([b.radius for b in bodies], float),
+            inner_radius=jnp.asarray([b.inner_radius for b in bodies], float),
+            local_vertices=jnp.asarray(body.local), vertex_mask=jnp.asarray(body.mask),
+            edge_mask=jnp.asarray(body.edges), edge_material=jnp.asarray(body.edge_material),
+            n_vertices=jnp.asarray(body.mask.sum(1).astype(np.int32)),
+            area=jnp.asarray([b.area for b in bodies]), polar_moment=jnp.asarray([b.polar for b in bodies]),
+            bound_radius=jnp.asarray(body.bound),
+            gravity_scale=jnp.asarray([1.0 if b.gravity else 0.0 for b in bodies]),
+            material=jnp.asarray([names.index(b.material) for b in bodies], jnp.int32),
+            second_moment=jnp.asarray(np.array([b.moments for b in bodies])),
+            plane_strain=jnp.asarray([b.plane_strain for b in bodies]),
+            dof_projector=jnp.asarray(np.array([_projector(b) for b in bodies])),
+            dof_basis=jnp.asarray(np.array([_basis(b) for b in bodies])),
+            mesh=jnp.asarray(np.array([b.mesh for b in bodies], np.int32)),
             load_body=jnp.asarray([ld[0] for ld in self._loads], jnp.int32),
             load_point=jnp.asarray(np.reshape([ld[1] for ld in self._loads], (-1, 2))),
             load_times=jnp.asarray(knots[..., 0]),
             joint_key=jnp.full((1,), NO_JOINT, jnp.int64), joint_a=jnp.zeros((1,), jnp.int32),
             joint_b=jnp.zeros((1,), jnp.int32), joint_point=jnp.zeros((1, 2)),
-            **connector_model(self._connectors, centers),
-            **pin_model(self._bodies),
-            **dof_groups(self._bodies, self._connectors),
-            capacity=capacity, n_bodies=n, max_vertices=v_max)
-        key, force = zeros_contact_memory(capacity.contacts)
-        state = State(time=jnp.asarray(0.0), origin=jnp.asarray(centers), displacement=jnp.zeros((n, 2)),
-                      rotation=jnp.zeros(n), stretch=jnp.broadcast_to(jnp.eye(2), (n, 2, 2)),
-                      stress=jnp.asarray(np.array([b.stress for b in self._bodies])),
-                      velocity=jnp.asarray(velocity), contact_key=key, contact_force=force,
-                      joint_integrity=jnp.zeros((1,)))
-        params = Params(dt=jnp.asarray(float(self.dt)), gravity=jnp.asarray(g),
-                        density=jnp.asarray([b.density for b in self._bodies]),
-                        young=jnp.asarray([b.young for b in self._bodies]),
-                        poisson=jnp.asarray([b.poisson for b in self._bodies]),
-                        **{field: jnp.asarray(table) for field, table in tables.items()},
-                        load_force=jnp.asarray(np.reshape([ld[2] for ld in self._loads], (-1, 2))),
-                        load_rate=jnp.asarray(np.reshape([ld[3] for ld in self._loads], (-1, 2))),
-                        load_history=jnp.asarray(knots[..., 1:]),
-                        dynamic=jnp.asarray(float(self.dynamic)),
-                        tol=jnp.asarray(float(self.tol)), max_iter=jnp.asarray(float(self.max_iter)),
-                        margin=jnp.asarray(margin), rupture_width=jnp.asarray(0.0),
-                        **connector_params(self._connectors))
-        if np.any(tables["tensile"] > 0):
-            model, state = cement.with_joints(model, state, params, tol=1e-9 * size)
-        settings = {"dt": self.dt, "gravity": tuple(np.asarray(self.gravity, float).tolist()), "tol": self.tol,
-                    "max_iter": self.max_iter, "margin": self.margin, "dynamic": self.dynamic,
-                    "capacities": dict(self.capacities)}
-        return Scene(model, state, params, tuple(labels), tuple(names), self.name,
-                     recipe=(copy.deepcopy(settings), tuple(self._recipe)), measured=tuple(self._measured))
+            **connector_model(self._connectors, body.centers),
+            **pin_model(bodies),
+            **dof_groups(bodies, self._connectors),
+            capacity=capacity, n_bodies=body.n, max_vertices=body.local.shape[1])
+
+    def _params(self, g: np.ndarray, tables: dict, margin: float) -> Params:
+        """The scene's Params: materials, contact laws, loads and solver settings."""
+        bodies = self._bodies
+        knots = _load_knots([ld[4] for ld in self._loads])
+        return Params(dt=jnp.asarray(float(self.dt)), gravity=jnp.asarray(g),
+                      density=jnp.asarray([b.density for b in bodies]),
+                      young=jnp.asarray([b.young for b in bodies]),
+                      poisson=jnp.asarray([b.poisson for b in bodies]),
+                      **{field: jnp.asarray(table) for field, table in tables.items()},
+                      load_force=jnp.asarray(np.reshape([ld[2] for ld in self._loads], (-1, 2))),
+                      load_rate=jnp.asarray(np.reshape([ld[3] for ld in self._loads], (-1, 2))),
+                      load_history=jnp.asarray(knots[..., 1:]),
+                      dynamic=jnp.asarray(float(self.dynamic)),
+                      tol=jnp.asarray(float(self.tol)), max_iter=jnp.asarray(float(self.max_iter)),
+                      margin=jnp.asarray(margin), rupture_width=jnp.asarray(0.0),
+                      **connector_params(self._connectors))
 
     # -- helpers -----------------------------------------------------------------------
     def _body_of(self, label: str, body, field: str = "body") -> "_Body":
