@@ -575,14 +575,15 @@ class SceneBuilder:
         tables = self._contact_tables(names)
         g = np.asarray(self.gravity, float)
         body = _body_arrays(self._bodies, names)
-        model = self._model(body, names, g, margin)
+        knots = _load_knots([ld[4] for ld in self._loads])
+        model = self._model(body, names, knots, g, margin)
         key, force = zeros_contact_memory(model.capacity.contacts)
         state = State(time=jnp.asarray(0.0), origin=jnp.asarray(body.centers), displacement=jnp.zeros((body.n, 2)),
                       rotation=jnp.zeros(body.n), stretch=jnp.broadcast_to(jnp.eye(2), (body.n, 2, 2)),
                       stress=jnp.asarray(np.array([b.stress for b in self._bodies])),
                       velocity=jnp.asarray(body.velocity), contact_key=key, contact_force=force,
                       joint_integrity=jnp.zeros((1,)))
-        params = self._params(g, tables, margin)
+        params = self._params(knots, g, tables, margin)
         if np.any(tables["tensile"] > 0):
             model, state = cement.with_joints(model, state, params, tol=1e-9 * size)
         settings = {"dt": self.dt, "gravity": tuple(g.tolist()), "tol": self.tol,
@@ -606,11 +607,12 @@ class SceneBuilder:
                 self._check_on_body(f"load {k}", "at", self._bodies[body].center + offset, body)
         return labels, size, 1e-6 * size if self.margin is None else float(self.margin)
 
-    def _model(self, body: "_BodyArrays", names: list[str], g: np.ndarray, margin: float) -> Model:
-        """The scene's Model: body geometry and kinds, loads, connectors, pins, dof groups,
-        and the buffers' first capacities."""
+    def _model(self, body: "_BodyArrays", names: list[str], knots: np.ndarray, g: np.ndarray,
+               margin: float) -> Model:
+        """The scene's Model: body geometry and kinds, loads (``knots``: their history's
+        knots), connectors, pins, dof groups, and the buffers' first capacities."""
         bodies = self._bodies
-        knots = _load_knots([ld[4] for ld in self._loads])
+        index = {m: k for k, m in enumerate(names)}
         capacity = initial_capacities(body.kinds, body.fixed, body.centers, body.local, body.mask, body.bound,
                                       body.velocity, self.dt, g, margin)
         capacity = dataclasses.replace(capacity, **{k: max(int(v), getattr(capacity, k))
@@ -625,7 +627,7 @@ class SceneBuilder:
             area=jnp.asarray([b.area for b in bodies]), polar_moment=jnp.asarray([b.polar for b in bodies]),
             bound_radius=jnp.asarray(body.bound),
             gravity_scale=jnp.asarray([1.0 if b.gravity else 0.0 for b in bodies]),
-            material=jnp.asarray([names.index(b.material) for b in bodies], jnp.int32),
+            material=jnp.asarray([index[b.material] for b in bodies], jnp.int32),
             second_moment=jnp.asarray(np.array([b.moments for b in bodies])),
             plane_strain=jnp.asarray([b.plane_strain for b in bodies]),
             dof_projector=jnp.asarray(np.array([_projector(b) for b in bodies])),
@@ -641,10 +643,9 @@ class SceneBuilder:
             **dof_groups(bodies, self._connectors),
             capacity=capacity, n_bodies=body.n, max_vertices=body.local.shape[1])
 
-    def _params(self, g: np.ndarray, tables: dict, margin: float) -> Params:
+    def _params(self, knots: np.ndarray, g: np.ndarray, tables: dict, margin: float) -> Params:
         """The scene's Params: materials, contact laws, loads and solver settings."""
         bodies = self._bodies
-        knots = _load_knots([ld[4] for ld in self._loads])
         return Params(dt=jnp.asarray(float(self.dt)), gravity=jnp.asarray(g),
                       density=jnp.asarray([b.density for b in bodies]),
                       young=jnp.asarray([b.young for b in bodies]),

@@ -625,9 +625,10 @@ def read_ntdda(geometry_path, analysis_path=None, *, tensile: bool = False) -> d
     geo = _geometry_ddaml(geo_path) if _file_type(geo_path) == "ddaml" else _geometry_plain(geo_path)
     blocks = _cut(geo)
     w0 = _domain_scale(geo.joints)
-    material = _materials_of(geo, blocks, 1e-9 * w0)
+    tol = 1e-9 * w0
+    material = _materials_of(geo, blocks, tol)
     joint_type = {k: j.kind for k, j in enumerate(geo.joints)}
-    scene = _geometry_scene(geo, blocks, material, joint_type, w0)
+    scene = _geometry_scene(geo, blocks, material, joint_type, w0, tol)
     if analysis_path is None:
         scene["materials"], scene["joints"] = {}, {}
         return _ordered(scene)
@@ -643,7 +644,7 @@ def read_ntdda(geometry_path, analysis_path=None, *, tensile: bool = False) -> d
     return _ordered(scene)
 
 
-def _geometry_scene(geo: _Geometry, blocks, material: list[int], joint_type: dict, w0: float) -> dict:
+def _geometry_scene(geo: _Geometry, blocks, material: list[int], joint_type: dict, w0: float, tol: float) -> dict:
     """The scene's geometry: its blocks as bodies, fixed, load and measured points, bolts."""
     def block_at(item: _Item, point, what: str) -> int:
         k = _block_of(blocks, point)
@@ -663,7 +664,7 @@ def _geometry_scene(geo: _Geometry, blocks, material: list[int], joint_type: dic
         "bodies": [{"type": "polygon", "vertices": b.vertices.tolist(), "material": f"material{material[i]}",
                     "joints": [f"joint{joint_type[int(line)]}" for line in b.edge_lines], "fixed": False}
                    for i, b in enumerate(blocks)],
-        "fixed_points": [{"body": k, "at": at} for k, at, _ in _fixed_points(geo, blocks, w0, 1e-9 * w0)],
+        "fixed_points": [{"body": k, "at": at} for k, at, _ in _fixed_points(geo, blocks, w0, tol)],
         "loads": [{"body": block_at(p, p.values, "load point"), "at": list(p.values)} for p in geo.loads],
         "measured_points": [{"body": block_at(p, p.values, "measured point"), "at": list(p.values)}
                             for p in geo.measured],
