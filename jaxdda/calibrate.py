@@ -257,7 +257,7 @@ def _fit_base(params: Params, items: Sequence[_Item], theta: dict, rupture_width
     if rupture_width is None:
         tensile = [i for i in items if i.field == "tensile"]
         rupture_width = 0.01 * float(jnp.exp(theta[tensile[0].name])) if tensile else float(params.rupture_width)
-    return dataclasses.replace(params, rupture_width=jnp.asarray(float(rupture_width)))
+    return dataclasses.replace(params, rupture_width=jnp.asarray(np.float64(rupture_width)))
 
 
 class _Record:

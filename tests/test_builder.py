@@ -164,3 +164,17 @@ def test_polygon_is_stored_counter_clockwise_about_its_centroid():
     assert area2 > 0
     np.testing.assert_allclose(scene.model.area[0], 8.0)
     np.testing.assert_allclose(scene.model.polar_moment[0], 8.0 * (16 + 4) / 12)
+
+
+def test_scalars_are_strongly_typed_float64():
+    """A weakly typed scalar (dt, tol, ...) is another jit signature than the float64 a user
+    sets, so every change of it would compile the step again."""
+    import jax
+
+    sb = builder()
+    sb.add_disk(center=(0, 0), radius=1.0, density=1.0)
+    scene = sb.build()
+    for tree in (scene.model, scene.state, scene.params):
+        for path, leaf in jax.tree_util.tree_flatten_with_path(tree)[0]:
+            assert not getattr(leaf, "weak_type", False), jax.tree_util.keystr(path)
+    assert scene.params.dt.dtype == np.float64

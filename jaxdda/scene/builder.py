@@ -97,6 +97,12 @@ class _Body:
     pins: list = dataclasses.field(default_factory=list)  # world points of its fixed points (add_fixed_point)
 
 
+def _scalar(x) -> jnp.ndarray:
+    """A scalar of the scene (dt, tol, ...): float64, not weakly typed, so that a value the
+    user sets (a float64 array) keeps the compiled program."""
+    return jnp.asarray(np.float64(x))
+
+
 def _recorded(method):
     """Record a successful call of a builder method (all its arguments, defaults filled
     in) in the builder's recipe, so that the scene can be written out as a scene file.
@@ -578,7 +584,7 @@ class SceneBuilder:
         knots = _load_knots([ld[4] for ld in self._loads])
         model = self._model(body, names, knots, g, margin)
         key, force = zeros_contact_memory(model.capacity.contacts)
-        state = State(time=jnp.asarray(0.0), origin=jnp.asarray(body.centers), displacement=jnp.zeros((body.n, 2)),
+        state = State(time=_scalar(0.0), origin=jnp.asarray(body.centers), displacement=jnp.zeros((body.n, 2)),
                       rotation=jnp.zeros(body.n), stretch=jnp.broadcast_to(jnp.eye(2), (body.n, 2, 2)),
                       stress=jnp.asarray(np.array([b.stress for b in self._bodies])),
                       velocity=jnp.asarray(body.velocity), contact_key=key, contact_force=force,
@@ -646,7 +652,7 @@ class SceneBuilder:
     def _params(self, knots: np.ndarray, g: np.ndarray, tables: dict, margin: float) -> Params:
         """The scene's Params: materials, contact laws, loads and solver settings."""
         bodies = self._bodies
-        return Params(dt=jnp.asarray(float(self.dt)), gravity=jnp.asarray(g),
+        return Params(dt=_scalar(self.dt), gravity=jnp.asarray(g),
                       density=jnp.asarray([b.density for b in bodies]),
                       young=jnp.asarray([b.young for b in bodies]),
                       poisson=jnp.asarray([b.poisson for b in bodies]),
@@ -654,9 +660,9 @@ class SceneBuilder:
                       load_force=jnp.asarray(np.reshape([ld[2] for ld in self._loads], (-1, 2))),
                       load_rate=jnp.asarray(np.reshape([ld[3] for ld in self._loads], (-1, 2))),
                       load_history=jnp.asarray(knots[..., 1:]),
-                      dynamic=jnp.asarray(float(self.dynamic)),
-                      tol=jnp.asarray(float(self.tol)), max_iter=jnp.asarray(float(self.max_iter)),
-                      margin=jnp.asarray(margin), rupture_width=jnp.asarray(0.0),
+                      dynamic=_scalar(self.dynamic),
+                      tol=_scalar(self.tol), max_iter=_scalar(self.max_iter),
+                      margin=_scalar(margin), rupture_width=_scalar(0.0),
                       **connector_params(self._connectors))
 
     # -- helpers -----------------------------------------------------------------------
