@@ -12,6 +12,8 @@ import pytest
 import jaxdda
 from jaxdda.examples import practical
 from jaxdda.scene.builder import SceneBuilder
+from jaxdda.scene.padding import Shape, pad_scene
+from jaxdda.types import Capacities
 
 G = 10.0
 FD_RTOL = 1e-5  # the issue's bar for smooth regimes
@@ -20,7 +22,15 @@ pytestmark = pytest.mark.usefixtures("no_persistent_cache")
 # same step), and the program compiles in about half the time (value_and_grad of 5 steps
 # of case 7.1: 256 -> 136 s); test_calibrate and the fixed-point pendulum differentiate
 # the checkpointed rollout that calibration uses.
-CHECKPOINT = False
+#
+# Every case's scene is padded to one shape and run in chunks of CHUNK steps, so that all
+# of them share three compiled programs (a chunk, its vjp and its jvp) and the chain rule
+# joins the chunks: a gradient program compiles in minutes, one per case cost the suite's
+# longest worker 18 of its 33 minutes.
+CHUNK = 5
+SHAPE = Shape(bodies=16, vertices=4, materials=4, loads=1, knots=2, joints=4, connectors=0, groups=0, group_size=0,
+              group_dofs=1, pins=0, capacity=Capacities(candidates=64, pairs_pp=16, pairs_pb=16, pairs_bb=16,
+                                                        contacts=32))
 
 
 def _with(scene, tol=1e-14):
@@ -28,26 +38,91 @@ def _with(scene, tol=1e-14):
     return dataclasses.replace(scene, params=dataclasses.replace(scene.params, tol=jnp.asarray(tol)))
 
 
+def _fits(shape, room):
+    flat = jax.tree.leaves(dataclasses.astuple(shape)), jax.tree.leaves(dataclasses.astuple(room))
+    return all(a <= b for a, b in zip(*flat))
+
+
+def _chunk(model, state, params):
+    """CHUNK steps: (end state, the steps' infos)."""
+    end, (_, infos) = jaxdda.rollout(model, state, params, CHUNK, checkpoint=False)
+    return end, infos
+
+
+def _int_zeros(tangents, primals):
+    """float0 tangents (of integer leaves) as integer zeros, so they pass through jit."""
+    return jax.tree.map(lambda t, x: jnp.zeros_like(x) if t.dtype == jax.dtypes.float0 else t, tangents, primals)
+
+
+def _float0(tangents):
+    """Integer tangents back to float0, as jax.vjp and jax.jvp take them."""
+    return jax.tree.map(lambda t: np.zeros(t.shape, jax.dtypes.float0) if not jnp.issubdtype(t.dtype, jnp.inexact)
+                        else t, tangents)
+
+
+@jax.jit
+def _chunk_vjp(model, state, params, cotangent):
+    out, pull_back = jax.vjp(lambda s, p: _chunk(model, s, p), state, params)
+    return _int_zeros(pull_back(_float0(cotangent)), (state, params))
+
+
+@jax.jit
+def _chunk_jvp(model, state, params, tangent):
+    out, d_out = jax.jvp(lambda s, p: _chunk(model, s, p), (state, params), _float0(tangent))
+    return out, _int_zeros(d_out, out)
+
+
+_chunk_forward = jax.jit(_chunk)
+
+
 class Case:
-    """A scalar observable f(theta) of a rollout, with its gradient (and, with ``forward``,
-    its jvp) compiled once and shared by the tests. f is NaN if a contact buffer overflowed."""
+    """A scalar observable f(theta) = observe(end state, last chunk's infos) of a rollout,
+    with its gradient by reverse mode (and its jvp by forward mode) through the shared chunk
+    programs. f is NaN if a contact buffer overflowed."""
 
-    def __init__(self, scene, steps, setup, observe, forward=False):
-        def f(theta):
-            params, state = setup(scene.params, scene.state, theta)
-            end, (_, infos) = jaxdda.rollout(scene.model, state, params, steps, checkpoint=CHECKPOINT)
-            return observe(end, infos) + jnp.where(jnp.any(infos.overflow), jnp.nan, 0.0)
+    def __init__(self, scene, steps, setup, observe):
+        assert steps % CHUNK == 0 and _fits(Shape.covering([scene]), SHAPE)
+        # strongly typed leaves, whatever the scene's: a weak scalar would compile anew
+        self.model, state, params = jax.tree.map(lambda x: jnp.array(x, jnp.result_type(x)), pad_scene(scene, SHAPE))
+        self.start = functools.partial(setup, params, state)
+        self.chunks, self.observe = steps // CHUNK, observe
 
-        # One compiled program gives both the value and the gradient (each costs minutes to
-        # compile); the finite differences call it too.
-        self.value_and_grad = jax.jit(jax.value_and_grad(f))
-        self.jvp = jax.jit(lambda t, v: jax.jvp(f, (t,), (v,))) if forward else None
+    def _forward(self, theta):
+        """(f, the chunks' start states, the last chunk's infos, the params)."""
+        params, state = self.start(theta)
+        starts, overflow = [], False
+        for _ in range(self.chunks):
+            starts.append(state)
+            state, infos = _chunk_forward(self.model, state, params)
+            overflow = overflow | jnp.any(infos.overflow)
+        return state, infos, starts, params, jnp.where(overflow, jnp.nan, 0.0)
 
     def value(self, theta):
-        return self.value_and_grad(theta)[0]
+        end, infos, _, _, nan = self._forward(theta)
+        return self.observe(end, infos) + nan
 
     def grad(self, theta):
-        return self.value_and_grad(theta)[1]
+        """Reverse mode: the observable's cotangent pulled back chunk by chunk, then
+        through the setup."""
+        end, infos, starts, params, _ = self._forward(theta)
+        _, pull_back = jax.vjp(self.observe, end, infos)
+        ct_state, ct_infos = _int_zeros(pull_back(jnp.ones(())), (end, infos))
+        ct_params = jax.tree.map(jnp.zeros_like, params)
+        for state in reversed(starts):
+            ct_state, ct_p = _chunk_vjp(self.model, state, params, (ct_state, ct_infos))
+            ct_params = jax.tree.map(jnp.add, ct_params, ct_p)
+            ct_infos = jax.tree.map(jnp.zeros_like, ct_infos)
+        _, pull_setup = jax.vjp(self.start, theta)
+        return pull_setup(_float0((ct_params, ct_state)))[0]
+
+    def jvp(self, theta, direction):
+        """Forward mode: the setup's tangent pushed through the chunks."""
+        (params, state), (d_params, d_state) = jax.jvp(self.start, (theta,), (direction,))
+        d_params = _int_zeros(d_params, params)
+        for _ in range(self.chunks):
+            (state, infos), (d_state, d_infos) = _chunk_jvp(self.model, state, params, (_int_zeros(d_state, state),
+                                                                                          d_params))
+        return jax.jvp(self.observe, (state, infos), _float0((d_state, d_infos)))
 
     def __call__(self, theta):
         value = float(self.value(_floats(theta)))
@@ -62,7 +137,7 @@ class Case:
         up[key], down[key] = theta[key] + eps, theta[key] - eps
         return (self(up) - self(down)) / (2 * eps)
 
-    def check(self, theta, eps, exact=None):
+    def check(self, theta, eps, exact=None, forward=False):
         """The gradient equals central differences (and the closed form ``exact``); with
         ``forward``, the jvp along every unit direction too."""
         grad = self.gradient(theta)
@@ -71,7 +146,7 @@ class Case:
             np.testing.assert_allclose(grad[key], fd, rtol=FD_RTOL, err_msg=key)
             if exact is not None:
                 np.testing.assert_allclose(grad[key], exact[key], rtol=FD_RTOL, err_msg=key)
-            if self.jvp is not None:
+            if forward:
                 unit = {k: jnp.asarray(float(k == key)) for k in theta}
                 np.testing.assert_allclose(float(self.jvp(_floats(theta), unit)[1]), grad[key], rtol=1e-10)
         return grad
@@ -99,13 +174,13 @@ def _incline_setup(params, state, theta):
 def incline():
     scene = _with(practical.incline())
     return Case(scene, round(T_INCLINE / 0.01), _incline_setup,
-                lambda end, infos: end.displacement[0] @ jnp.asarray(DOWN), forward=True)
+                lambda end, infos: end.displacement[0] @ jnp.asarray(DOWN))
 
 
 def test_incline_gradient_vs_friction_and_initial_velocity():
     # s(T) = v0 T + g (sin a - mu cos a) T^2 / 2 while sliding (the step is exact for it)
     exact = {"mu": -0.5 * G * math.cos(ANGLE) * T_INCLINE ** 2, "v0": T_INCLINE}
-    incline().check({"mu": 0.3, "v0": 0.5}, {"mu": 1e-4, "v0": 1e-4}, exact)
+    incline().check({"mu": 0.3, "v0": 0.5}, {"mu": 1e-4, "v0": 1e-4}, exact, forward=True)
 
 
 def test_gradient_at_stick_and_at_zero_relative_velocity_is_finite():
