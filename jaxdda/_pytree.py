@@ -1,10 +1,13 @@
-"""Frozen dataclasses registered as JAX pytrees (static fields become tree metadata)."""
+"""Frozen dataclasses registered as JAX pytrees (static fields become tree metadata),
+and the integer leaves of tangent trees."""
 from __future__ import annotations
 
 import dataclasses
 from typing import Any
 
 import jax
+import jax.numpy as jnp
+import numpy as np
 
 
 def static_field(**kwargs: Any) -> Any:
@@ -21,3 +24,15 @@ def pytree_dataclass(cls: type) -> type:
     jax.tree_util.register_dataclass(cls, data_fields=data, meta_fields=meta)
     cls.replace = dataclasses.replace  # type: ignore[attr-defined]
     return cls
+
+
+def int_zeros(tangents, primals):
+    """float0 tangents (of integer leaves) as integer zeros, which jit and vmap pass."""
+    return jax.tree.map(lambda t, x: jnp.zeros(t.shape, x.dtype) if t.dtype == jax.dtypes.float0 else t, tangents,
+                        primals)
+
+
+def float0(tangents):
+    """Integer tangents back to float0, as jax.jvp and jax.vjp take them."""
+    return jax.tree.map(lambda t: np.zeros(t.shape, jax.dtypes.float0) if not jnp.issubdtype(t.dtype, jnp.inexact)
+                        else t, tangents)

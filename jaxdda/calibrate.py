@@ -15,11 +15,14 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from jaxdda._pytree import float0, int_zeros
 from jaxdda.errors import CapacityError
 from jaxdda.progress import Progress
 from jaxdda.scene.builder import Scene
+from jaxdda.scene.padding import Shape, pad_scene, unpad_state
 from jaxdda.simulate import MAX_REGROW, Trajectory, simulate, with_capacity
 from jaxdda.step import rollout
+from jaxdda.step.pipeline import step_if
 from jaxdda.types import Capacities, Model, Params, State
 
 TABLES = ("friction", "restitution", "cohesion", "rolling", "tensile")  # (M, M) per material pair
@@ -135,13 +138,95 @@ def _residual(spec: _Spec, problem: _Problem, theta: dict):
     return err / np.sqrt(err.size), (jnp.max(infos.needed, 0), jnp.any(infos.overflow))
 
 
-@functools.partial(jax.jit, static_argnums=0)
-def _linearise(spec: _Spec, problem: _Problem, theta: dict):
-    """(residual, its Jacobian in the flattened theta by forward mode, aux)."""
+# Steps per compiled chunk of the forward-mode linearisation: fits of scenes of one size
+# class share its program, whatever the number of steps, items or observable.
+LM_CHUNK = 50
+
+
+@functools.partial(jax.jit, static_argnames="length")
+def _chunk_tangents(model: Model, state: State, params: Params, d_state, d_params, n_valid, length: int):
+    """``length`` steps (those from ``n_valid`` on skipped) and their tangents along k
+    directions (leading axis of ``d_state``, ``d_params``; integer leaves as zeros):
+    ((end, stacked states, needed, overflow), (d_end, d_states))."""
+    def run(s, p):
+        def body(carry, k):
+            s2, info = step_if(k < n_valid, model, carry, p)
+            return s2, (s2, info.needed, info.overflow & (k < n_valid))
+
+        end, (states, needed, overflow) = jax.lax.scan(body, s, jnp.arange(length))
+        return end, states, jnp.max(needed, 0), jnp.any(overflow)
+
+    def along(ds, dp):
+        out, d_out = jax.jvp(run, (state, params), float0((ds, dp)))
+        return out, int_zeros(d_out[:2], out[:2])
+
+    return jax.vmap(along, out_axes=(None, 0))(d_state, d_params)
+
+
+class _PaddedFit(NamedTuple):
+    """A Levenberg-Marquardt fit's scene padded to its size class (``Shape.bucket``), so
+    that fits of scenes of similar size share ``_chunk_tangents``."""
+
+    model: Model
+    state: State
+    params: Params
+    masks: tuple[jax.Array, ...]  # the items' masks, padded
+    target: jax.Array
+    own: Scene  # the scene itself (its own bodies are observed)
+    shape: Shape
+
+
+def _padded_fit(scene: Scene, problem: _Problem, spec: _Spec) -> _PaddedFit:
+    own = dataclasses.replace(scene, model=problem.model, state=problem.state, params=problem.params)
+    shape = Shape.covering([own]).bucket()
+    model, state, params = jax.tree.map(jnp.asarray, pad_scene(own, shape))
+    masks = []
+    for (_, field), mask in zip(spec.fields, problem.masks):
+        mask = np.asarray(mask)
+        room = np.shape(getattr(params, field))[:mask.ndim]
+        masks.append(jnp.asarray(np.pad(mask, [(0, r - m) for r, m in zip(room, mask.shape)])))
+    return _PaddedFit(model, state, params, tuple(masks), problem.target, own, shape)
+
+
+def _linearise(spec: _Spec, fit: _PaddedFit, theta: dict):
+    """(residual, its Jacobian in the flattened theta by forward mode, aux): the rollout
+    in chunks of LM_CHUNK steps carrying one tangent per fitted value."""
     flat, unravel = jax.flatten_util.ravel_pytree(theta)
-    jac, (r, aux) = jax.jacfwd(lambda y: (lambda o: (o[0], o))(_residual(spec, problem, unravel(y))),
-                               has_aux=True)(flat)
-    return r, jac, aux
+
+    def set_params(x):
+        return _apply(fit.params, spec.fields, fit.masks, unravel(x))
+
+    k = flat.size
+    params = set_params(flat)
+    d_params = jax.vmap(lambda v: jax.jvp(set_params, (flat,), (v,))[1])(jnp.eye(k, dtype=flat.dtype))
+    state = fit.state
+    d_state = jax.tree.map(lambda x: jnp.zeros((k,) + x.shape, x.dtype), state)
+    states, tangents, needed, overflow = [fit.state], [d_state], [], False
+    for start in range(0, spec.steps, LM_CHUNK):
+        n = min(LM_CHUNK, spec.steps - start)
+        (state, chunk, need, over), (d_state, d_chunk) = _chunk_tangents(fit.model, state, params, d_state, d_params,
+                                                                         n, length=LM_CHUNK)
+        states.append(jax.tree.map(lambda x: x[:n], chunk))
+        tangents.append(jax.tree.map(lambda x: x[:, :n], d_chunk))
+        needed.append(need)
+        overflow = overflow | over
+    states = jax.tree.map(lambda x0, *xs: np.concatenate([np.asarray(x0)[None], *map(np.asarray, xs)]), *states)
+    tangents = jax.tree.map(lambda x0, *xs: np.concatenate([np.asarray(x0)[:, None], *map(np.asarray, xs)], 1),
+                            *tangents)
+    own = unpad_state(states, fit.own, fit.shape, leading=1)
+    d_own = unpad_state(tangents, fit.own, fit.shape, leading=2, keys=False)
+    r, jac = _observed_misfit(spec.observe, fit.target, own, d_own)
+    return r, jac.T, (jnp.max(jnp.stack(needed), 0), overflow)
+
+
+@functools.partial(jax.jit, static_argnums=0)
+def _observed_misfit(observe, target, states, tangents):
+    """The scaled misfit of the observed stacked states, and its tangents (k, size)."""
+    def misfit(s):
+        err = (observe_trajectory(observe, s) - target).reshape(-1)
+        return err / np.sqrt(err.size)
+
+    return misfit(states), jax.vmap(lambda t: jax.jvp(misfit, (states,), (float0(t),))[1])(tangents)
 
 
 def _loss(spec: _Spec, problem: _Problem, theta: dict):
@@ -206,7 +291,10 @@ def calibrate(scene: Scene, target, fit: Sequence[str], *, optimizer: optax.Grad
     The loss is the mean squared difference of the observed quantity over all steps.
     The compiled programs are kept: a second fit of the same items, observable, number
     of steps and scene shape (other start values or targets; the same optimizer object)
-    compiles nothing. Returns the final parameters (Calibration).
+    compiles nothing. Levenberg-Marquardt runs the scene padded to its size class in
+    chunks of ``LM_CHUNK`` steps, so that its one large program (the chunk with its
+    tangents) serves every fit of a scene of that class with as many fitted values,
+    whatever the items, steps or observable. Returns the final parameters (Calibration).
     """
     items = [_item(scene, spec) for spec in fit]
     if not items:
@@ -225,7 +313,7 @@ def calibrate(scene: Scene, target, fit: Sequence[str], *, optimizer: optax.Grad
     model, state = with_capacity(scene.model, scene.state, scene.model.capacity.grown(needed))
     if optimizer is None:
         logarithmic = {item.name: jnp.full(jnp.shape(theta[item.name]), item.field in POSITIVE) for item in items}
-        method = functools.partial(_levenberg_marquardt, logarithmic=logarithmic)
+        method = functools.partial(_levenberg_marquardt, logarithmic=logarithmic, scene=scene)
     else:
         method = functools.partial(_optax, optax.with_extra_args_support(optimizer))
     for _ in range(MAX_REGROW):
@@ -279,14 +367,16 @@ def _overflowed(aux):
     return Capacities(*np.asarray(needed).tolist()) if bool(overflow) else None
 
 
-def _levenberg_marquardt(spec, problem, theta, iterations, record, logarithmic):
+def _levenberg_marquardt(spec, problem, theta, iterations, record, logarithmic, scene):
     """Levenberg-Marquardt on the misfit, its Jacobian by forward mode (one tangent per
     fitted value): the usual method for least squares with few parameters. Each iteration
     is one linearisation; a rejected step raises the damping and costs an iteration."""
     flat, unravel = jax.flatten_util.ravel_pytree(theta)
 
+    fit = _padded_fit(scene, problem, spec)
+
     def linearise(x):
-        return _linearise(spec, problem, unravel(x))
+        return _linearise(spec, fit, unravel(x))
 
     x = flat
     full_radius = jnp.where(jax.flatten_util.ravel_pytree(logarithmic)[0], LM_RADIUS, LM_RADIUS * (1.0 + jnp.abs(flat)))

@@ -5,6 +5,7 @@ import optax
 import pytest
 
 import jaxdda
+from jaxdda.calibrate import _chunk_tangents
 from tests.compiles import counting
 
 RECOVERY = 0.01  # the bar: within 1 % of the truth
@@ -41,6 +42,13 @@ def test_rolling_coefficient_from_a_disk_rolling_to_rest():
     assert np.ptp(target.centroid[-50:, 0, 0]) < 1e-9  # it has come to rest
     cal = jaxdda.calibrate(scene, target, ["rolling"], initial={"rolling": 0.03}, iterations=10)
     _recovered(cal, {"rolling": 0.02})
+    # Another scene of the size class (the incline), another item, steps and observable:
+    # the chunk with its tangents is not compiled again.
+    programs = _chunk_tangents._cache_size()
+    incline = jaxdda.examples.get("incline")
+    jaxdda.calibrate(incline, jaxdda.simulate(incline, 20), ["friction"], iterations=1, observe="pose",
+                     progress=False)
+    assert _chunk_tangents._cache_size() == programs
 
 
 def test_tensile_strength_from_a_cemented_block_under_a_ramped_pull():

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import jaxdda
+from jaxdda._pytree import float0, int_zeros
 from jaxdda.examples import practical
 from jaxdda.scene.builder import SceneBuilder
 from jaxdda.scene.padding import Shape, pad_scene
@@ -49,27 +50,16 @@ def _chunk(model, state, params):
     return end, infos
 
 
-def _int_zeros(tangents, primals):
-    """float0 tangents (of integer leaves) as integer zeros, so they pass through jit."""
-    return jax.tree.map(lambda t, x: jnp.zeros_like(x) if t.dtype == jax.dtypes.float0 else t, tangents, primals)
-
-
-def _float0(tangents):
-    """Integer tangents back to float0, as jax.vjp and jax.jvp take them."""
-    return jax.tree.map(lambda t: np.zeros(t.shape, jax.dtypes.float0) if not jnp.issubdtype(t.dtype, jnp.inexact)
-                        else t, tangents)
-
-
 @jax.jit
 def _chunk_vjp(model, state, params, cotangent):
     out, pull_back = jax.vjp(lambda s, p: _chunk(model, s, p), state, params)
-    return _int_zeros(pull_back(_float0(cotangent)), (state, params))
+    return int_zeros(pull_back(float0(cotangent)), (state, params))
 
 
 @jax.jit
 def _chunk_jvp(model, state, params, tangent):
-    out, d_out = jax.jvp(lambda s, p: _chunk(model, s, p), (state, params), _float0(tangent))
-    return out, _int_zeros(d_out, out)
+    out, d_out = jax.jvp(lambda s, p: _chunk(model, s, p), (state, params), float0(tangent))
+    return out, int_zeros(d_out, out)
 
 
 _chunk_forward = jax.jit(_chunk)
@@ -106,23 +96,23 @@ class Case:
         through the setup."""
         end, infos, starts, params, _ = self._forward(theta)
         _, pull_back = jax.vjp(self.observe, end, infos)
-        ct_state, ct_infos = _int_zeros(pull_back(jnp.ones(())), (end, infos))
+        ct_state, ct_infos = int_zeros(pull_back(jnp.ones(())), (end, infos))
         ct_params = jax.tree.map(jnp.zeros_like, params)
         for state in reversed(starts):
             ct_state, ct_p = _chunk_vjp(self.model, state, params, (ct_state, ct_infos))
             ct_params = jax.tree.map(jnp.add, ct_params, ct_p)
             ct_infos = jax.tree.map(jnp.zeros_like, ct_infos)
         _, pull_setup = jax.vjp(self.start, theta)
-        return pull_setup(_float0((ct_params, ct_state)))[0]
+        return pull_setup(float0((ct_params, ct_state)))[0]
 
     def jvp(self, theta, direction):
         """Forward mode: the setup's tangent pushed through the chunks."""
         (params, state), (d_params, d_state) = jax.jvp(self.start, (theta,), (direction,))
-        d_params = _int_zeros(d_params, params)
+        d_params = int_zeros(d_params, params)
         for _ in range(self.chunks):
-            (state, infos), (d_state, d_infos) = _chunk_jvp(self.model, state, params, (_int_zeros(d_state, state),
+            (state, infos), (d_state, d_infos) = _chunk_jvp(self.model, state, params, (int_zeros(d_state, state),
                                                                                           d_params))
-        return jax.jvp(self.observe, (state, infos), _float0((d_state, d_infos)))
+        return jax.jvp(self.observe, (state, infos), float0((d_state, d_infos)))
 
     def __call__(self, theta):
         value = float(self.value(_floats(theta)))

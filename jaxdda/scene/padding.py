@@ -145,16 +145,19 @@ def pad_scene(scene: Scene, shape: Shape) -> tuple[Model, State, Params]:
     return model, state, params
 
 
-def unpad_state(state: State, scene: Scene, shape: Shape) -> State:
+def unpad_state(state: State, scene: Scene, shape: Shape, leading: int = 0, keys: bool = True) -> State:
     """A state of ``scene`` padded to ``shape`` (``pad_scene``) brought back to the scene's
     own shape: its bodies and joints, and its contact memory renumbered (the contact
-    capacity is kept)."""
+    capacity is kept). ``leading``: axes before the body axis (stacked states); without
+    ``keys`` the contact keys are left as they are (a tangent's integer zeros)."""
     m, n = scene.model, scene.model.n_bodies
+    lead = (slice(None),) * leading
     per_body = ("origin", "displacement", "rotation", "velocity", "stretch", "stress")
+    key = state.contact_key
     return dataclasses.replace(
-        state, **{f: np.asarray(getattr(state, f))[:n] for f in per_body},
-        joint_integrity=np.asarray(state.joint_integrity)[: m.joint_key.shape[0]],
-        contact_key=renumber(state.contact_key, m.kind, shape.bodies, shape.vertices, n, m.max_vertices))
+        state, **{f: np.asarray(getattr(state, f))[lead + (slice(n),)] for f in per_body},
+        joint_integrity=np.asarray(state.joint_integrity)[lead + (slice(m.joint_key.shape[0]),)],
+        contact_key=renumber(key, m.kind, shape.bodies, shape.vertices, n, m.max_vertices) if keys else key)
 
 
 def stack_scenes(scenes: Sequence[Scene]) -> tuple[Model, State, Params]:
