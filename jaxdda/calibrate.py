@@ -19,8 +19,8 @@ from jaxdda._pytree import float0, int_zeros
 from jaxdda.errors import CapacityError
 from jaxdda.progress import Progress
 from jaxdda.scene.builder import Scene
-from jaxdda.scene.padding import Shape, pad_scene, unpad_state
-from jaxdda.simulate import MAX_REGROW, Trajectory, simulate, with_capacity
+from jaxdda.scene.padding import Shape, unpad_state
+from jaxdda.simulate import MAX_REGROW, Trajectory, padded_scene, simulate, with_capacity
 from jaxdda.step import rollout
 from jaxdda.step.pipeline import step_if
 from jaxdda.types import Capacities, Model, Params, State
@@ -177,9 +177,8 @@ class _PaddedFit(NamedTuple):
 
 
 def _padded_fit(scene: Scene, problem: _Problem, spec: _Spec) -> _PaddedFit:
-    own = dataclasses.replace(scene, model=problem.model, state=problem.state, params=problem.params)
-    shape = Shape.covering([own]).bucket()
-    model, state, params = jax.tree.map(jnp.asarray, pad_scene(own, shape))
+    own, shape, model, state, params = padded_scene(dataclasses.replace(scene, model=problem.model), problem.params,
+                                                    problem.state)
     masks = []
     for (_, field), mask in zip(spec.fields, problem.masks):
         mask = np.asarray(mask)

@@ -217,7 +217,7 @@ def simulate(scene: Scene, steps: int, *, params: Params | None = None, chunk: i
     check_counts(steps=steps, chunk=chunk, save_every=save_every)
     _check_nonconvergence(on_nonconvergence, max_halvings)
     stop = on_nonconvergence != "continue"
-    own, shape, model, state, params = _padded(scene, params, state)
+    own, shape, model, state, params = padded_scene(scene, params, state)
     start, length = state, int(chunk)
     kept = _Kept(own, steps, save_every)
     bar = Progress(int(steps), "steps", steps > length if progress is None else bool(progress))
@@ -258,7 +258,7 @@ def _check_nonconvergence(on_nonconvergence: str, max_halvings: int) -> None:
         raise ValueError(f"max_halvings must be a non-negative integer, got {max_halvings!r}")
 
 
-def _padded(scene: Scene, params: Params | None, state: State | None):
+def padded_scene(scene: Scene, params: Params | None, state: State | None):
     """(the scene run: its params and start state, contact memory re-padded to its
     capacity; its size class; that scene padded to it as model, state, params). Scenes of
     similar size share one compiled program (a notebook's edited scene, a suite's scenes)."""

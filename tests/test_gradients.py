@@ -36,7 +36,7 @@ SHAPE = Shape(bodies=16, vertices=4, materials=4, loads=1, knots=2, joints=4, co
 
 def _with(scene, tol=1e-14):
     """The scene solved to ``tol`` (finite differences need a solve far below their step)."""
-    return dataclasses.replace(scene, params=dataclasses.replace(scene.params, tol=jnp.asarray(tol)))
+    return dataclasses.replace(scene, params=dataclasses.replace(scene.params, tol=jnp.asarray(np.float64(tol))))
 
 
 def _fits(shape, room):
@@ -72,8 +72,7 @@ class Case:
 
     def __init__(self, scene, steps, setup, observe):
         assert steps % CHUNK == 0 and _fits(Shape.covering([scene]), SHAPE)
-        # strongly typed leaves, whatever the scene's: a weak scalar would compile anew
-        self.model, state, params = jax.tree.map(lambda x: jnp.array(x, jnp.result_type(x)), pad_scene(scene, SHAPE))
+        self.model, state, params = jax.tree.map(jnp.asarray, pad_scene(scene, SHAPE))
         self.start = functools.partial(setup, params, state)
         self.chunks, self.observe = steps // CHUNK, observe
 
