@@ -4,6 +4,8 @@ checked against the VI's own conditions (Signorini and Coulomb, eqs. 19 and 26-2
 against the solver's residual."""
 from __future__ import annotations
 
+import re
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -87,3 +89,33 @@ def test_solutions_meet_signorini_and_coulomb(solved):
     sticks = np.abs(pt) < bound - tol
     assert (np.abs(gt)[sticks] <= tol.repeat(C, 1)[sticks]).all()  # sticking: no slip
     assert (pt * gt <= tol * np.abs(pt) + 1e-300).all()  # sliding: the force opposes the slip
+
+
+
+def _solver_loops(fun, *args) -> int:
+    """While loops in the contact solve's functions of ``fun``'s lowered program."""
+    loops, name = 0, ""
+    for line in jax.jit(fun).lower(*args).as_text().splitlines():
+        head = re.match(r"\s*func\.func (?:private |public )?@([\w.]+)", line)
+        name = head.group(1) if head else name
+        loops += name.startswith("solve") and "stablehlo.while" in line
+    return loops
+
+
+def test_the_reverse_pass_of_a_checkpointed_rollout_reruns_no_solve():
+    # rollout(checkpoint=True) recomputes each step in the reverse pass but keeps the
+    # results of its contact solves: its gradient holds no solver loop beyond those of
+    # the gradient that keeps every intermediate (rerunning them cost 12 more loops).
+    import jaxdda
+    from jaxdda.examples import practical
+    scene = practical.incline()
+
+    def slide(mu, checkpoint):
+        params = scene.params.replace(friction=jnp.full_like(scene.params.friction, mu))
+        end, _ = jaxdda.rollout(scene.model, scene.state, params, 2, checkpoint=checkpoint)
+        return end.displacement[0, 0]
+
+    mu = jnp.asarray(0.3)
+    kept = _solver_loops(jax.grad(lambda m: slide(m, False)), mu)
+    assert kept >= _solver_loops(lambda m: slide(m, True), mu) > 0
+    assert _solver_loops(jax.grad(lambda m: slide(m, True)), mu) <= kept

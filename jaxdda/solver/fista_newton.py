@@ -23,8 +23,12 @@ from typing import Any, Callable, NamedTuple
 
 import jax
 import jax.numpy as jnp
+from jax.ad_checkpoint import checkpoint_name
 
 from jaxdda.solver.sets import ContactSets, linearize, project
+
+# The checkpoint name of a solve's result (``jax.ad_checkpoint.checkpoint_name``).
+SOLUTION = "contact_vi_solution"
 
 class Solution(NamedTuple):
     force: jax.Array  # (C, 3) normal force, shear force, rolling moment (or their impulses)
@@ -76,7 +80,9 @@ def solve(apply_w: Callable[[Any, jax.Array], jax.Array], operand: Any, w_diag: 
     args = (apply_w, *jax.lax.stop_gradient((operand, b, sets)), scale)
 
     y0 = p0 / jnp.where(scale > 0, scale, 1.0)
-    y, k, res = _fista_newton(args, y0, tol, max_iter, force_scale, newton)
+    # Named: a rematerialising reverse pass (``rollout``) keeps the solve's result rather
+    # than running its loops again.
+    y, k, res = checkpoint_name(_fista_newton(args, y0, tol, max_iter, force_scale, newton), SOLUTION)
     y = _implicit(apply_w, operand, b, sets, scale, y)
     return Solution(scale * y, k, res, res <= tol)
 

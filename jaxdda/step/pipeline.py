@@ -9,6 +9,7 @@ import jax
 import jax.numpy as jnp
 
 from jaxdda.connectors import connector_forces
+from jaxdda.solver import fista_newton
 from jaxdda.step.frame import contact_frame
 from jaxdda.step.operators import assemble
 from jaxdda.step.report import contact_report, step_info
@@ -68,11 +69,15 @@ def rollout(model: Model, state: State, params: Params, steps: int, *, checkpoin
     ``states`` stacks the state after each step.
 
     Differentiable in ``params`` and ``state`` (forward and reverse mode). With
-    ``checkpoint`` each step is recomputed in the reverse pass (``jax.checkpoint``), so
-    reverse-mode memory grows with the number of steps only, not with the solver's work.
+    ``checkpoint`` each step is recomputed in the reverse pass (``jax.checkpoint``) but
+    its contact solves, whose results are kept (``fista_newton.SOLUTION``): reverse-mode
+    memory grows with the number of steps only, not with the solver's work, and the
+    reverse pass runs no solver loop.
     """
     def body(s, _):
         s2, info = step(model, s, params)
         return s2, (s2, info)
 
-    return jax.lax.scan(jax.checkpoint(body) if checkpoint else body, state, None, length=steps)
+    if checkpoint:
+        body = jax.checkpoint(body, policy=jax.checkpoint_policies.save_only_these_names(fista_newton.SOLUTION))
+    return jax.lax.scan(body, state, None, length=steps)
