@@ -73,21 +73,42 @@ def exact_impact_time(gap: jax.Array, vn: jax.Array, an: jax.Array, dt: jax.Arra
     from the end of the step where the linear model finds no root, so an impact it misses
     is found. ``passes`` (static, ``StepOptions.impact_refits``) refits; 0: the start
     frame's quadratic alone. A last pass reads the rate at the root.
+
+    The passes run on stopped values; the root is differentiated implicitly,
+    dt* = -dg / (dg/dt) at g(t*) = 0 (``_root_shift``), so derivatives see no loop.
     """
+    stopped = jax.lax.stop_gradient
+    gap0, vn0, an0, dt0, touch0 = stopped((gap, vn, an, dt, touch))
+
     def refit(i, carry):  # one pass (a loop, not unrolled: gap_at is a large part of the step's code)
         t_hits, _ = carry
         last = i == passes
         # A root near 0 takes the curvature of the whole step; the last pass reads the root.
-        at = jnp.where(last, t_hits[0], jnp.where(t_hits[0] > 1e-3 * dt, t_hits[0], dt))
-        value, rate = jax.jvp(gap_at, (at,), (jnp.ones_like(at),))
-        fit_at = jnp.where(last, dt, at)
-        curvature = an + 2.0 * (value - (gap + vn * fit_at + 0.5 * an * fit_at * fit_at)) / (fit_at * fit_at)
-        fitted = impact_time(gap, vn, curvature, dt, touch)
+        at = jnp.where(last, t_hits[0], jnp.where(t_hits[0] > 1e-3 * dt0, t_hits[0], dt0))
+        value, rate = stopped(jax.jvp(gap_at, (at,), (jnp.ones_like(at),)))
+        fit_at = jnp.where(last, dt0, at)
+        curvature = an0 + 2.0 * (value - (gap0 + vn0 * fit_at + 0.5 * an0 * fit_at * fit_at)) / (fit_at * fit_at)
+        fitted = impact_time(gap0, vn0, curvature, dt0, touch0)
         return jax.tree.map(lambda old, new: jnp.where(last, old, new), t_hits, fitted), rate
 
-    first = impact_time(gap, vn, an, dt, touch)
+    first = impact_time(gap0, vn0, an0, dt0, touch0)
     (t, hits), rate = jax.lax.fori_loop(0, passes + 1, refit, (first, jnp.zeros_like(gap)))
-    return t, hits, rate
+    root = hits & (t > 0) & (t < dt0) & (rate < 0)  # a crossing inside the step (not a touch, not the clip)
+    shift = _root_shift(gap_at(t), jnp.where(root, rate, -1.0))
+    return jnp.where(t >= dt0, dt, t + jnp.where(root, shift, 0.0)), hits, rate
+
+
+@jax.custom_jvp
+def _root_shift(value: jax.Array, rate: jax.Array) -> jax.Array:
+    """Zero, with the derivative -d value / rate: added to a root t* of g (value = g(t*),
+    rate = dg/dt there) it carries the implicit derivative of the root."""
+    return jnp.zeros_like(value)
+
+
+@_root_shift.defjvp
+def _root_shift_jvp(primals, tangents):
+    value, rate = primals
+    return jnp.zeros_like(value), -tangents[0] / rate
 
 
 def mesh_clock(mesh: jax.Array, clock: jax.Array) -> jax.Array:

@@ -223,6 +223,23 @@ def test_predict_times_the_impact_on_the_free_path(striking):
     np.testing.assert_allclose(np.asarray(pred.accel)[1, :3], [0.0, -10.0, 0.0], atol=1e-12)
 
 
+def test_the_impact_time_is_differentiated_at_its_root(striking):
+    # t* solves H0 + h = (V0 + v) t + 5 t^2: by the implicit function theorem
+    # dt*/dh = 1 / (V0 + 10 t*) and dt*/dv = -t* / (V0 + 10 t*), the refit loop unseen.
+    scene, k, _ = striking
+
+    def t_star(v, h):
+        state = scene.state.replace(velocity=scene.state.velocity.at[1, 1].add(-v),
+                                    displacement=scene.state.displacement.at[1, 1].add(h))
+        model, ops = assemble(scene.model, state, scene.params)
+        frame = frame_stage.contact_frame(model, state, scene.params)
+        return predict(model, state, scene.params, ops, frame).t_row[k]
+
+    rates = jax.jit(jax.jacfwd(t_star, argnums=(0, 1)))(0.0, 0.0)
+    speed = V0 + 10.0 * T_STAR
+    np.testing.assert_allclose([float(r) for r in rates], [-T_STAR / speed, 1.0 / speed], rtol=1e-10)
+
+
 def test_impact_rows_read_the_velocity_at_the_instant(striking):
     _, k, (_, _, rows, _, _) = striking
     np.testing.assert_allclose(float(rows.v_minus[k, 0]), -(V0 + 10.0 * T_STAR), rtol=1e-10)
