@@ -15,6 +15,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxdda.contact.keys import SEARCH
+
 _OFFSET = 2 ** 30  # cell coordinates are shifted to be non-negative before packing
 _NEIGHBOURS = np.array([(dx, dy) for dx in (-1, 0, 1) for dy in (-1, 0, 1)])
 
@@ -51,8 +53,8 @@ def grid_pairs(lo: jax.Array, hi: jax.Array, capacity: int, void: jax.Array | No
 
     # Small bodies: ranges of the sorted list in the 9 cells around each one.
     target = _pack(ij[:, None, :] + _NEIGHBOURS[None], jnp)  # (N, 9)
-    start = jnp.searchsorted(sorted_cell, target, side="left")
-    stop = jnp.searchsorted(sorted_cell, target, side="right")
+    start = jnp.searchsorted(sorted_cell, target, side="left", method=SEARCH)
+    stop = jnp.searchsorted(sorted_cell, target, side="right", method=SEARCH)
     count_small = jnp.where((large | void)[:, None], 0, stop - start).reshape(-1)
     # Large bodies: every other body (but the void ones, which come last).
     count_large = jnp.where(large, n_live, 0)
@@ -61,7 +63,7 @@ def grid_pairs(lo: jax.Array, hi: jax.Array, capacity: int, void: jax.Array | No
     needed = cum[-1].astype(jnp.int32)
 
     slot = jnp.arange(capacity)
-    row = jnp.minimum(jnp.searchsorted(cum, slot, side="right"), counts.shape[0] - 1)
+    row = jnp.minimum(jnp.searchsorted(cum, slot, side="right", method=SEARCH), counts.shape[0] - 1)
     within = slot - (cum[row] - counts[row])
     is_small = row < 9 * n
     small_row = jnp.minimum(row, 9 * n - 1)

@@ -14,6 +14,12 @@ import numpy as np
 
 from jaxdda.types import POLYGON
 
+# jnp.searchsorted's method in the step: log2 n rounds unrolled, which fuse into a kernel
+# or two. The default runs them as a while loop, a few kernels launched per round: on a
+# 3-body rockfall the step's six searches were 97 of its kernel launches (and 51 copies
+# of their loop state), 20% of its time.
+SEARCH = "scan_unrolled"
+
 
 def slots_per_pair(v_max: int) -> int:
     """Key slots reserved per body pair (the most any narrow-phase kernel uses)."""
@@ -45,6 +51,6 @@ def lookup(keys: jax.Array, queries: jax.Array) -> tuple[jax.Array, jax.Array]:
     """
     order = jnp.argsort(keys)
     sorted_keys = keys[order]
-    pos = jnp.clip(jnp.searchsorted(sorted_keys, queries), 0, keys.shape[0] - 1)
+    pos = jnp.clip(jnp.searchsorted(sorted_keys, queries, method=SEARCH), 0, keys.shape[0] - 1)
     found = (sorted_keys[pos] == queries) & (queries >= 0)
     return order[pos], found
