@@ -71,7 +71,8 @@ def exact_impact_time(gap: jax.Array, vn: jax.Array, an: jax.Array, dt: jax.Arra
     turning corner does the same. Each pass fits the quadratic's curvature to the exact
     gap at the current root (an + 2 (gap_at(t) - linear(t)) / t^2) and solves it again;
     from the end of the step where the linear model finds no root, so an impact it misses
-    is found. ``passes`` (static, ``StepOptions.impact_refits``) refits; 0: the start
+    is found. ``passes`` (static, ``StepOptions.impact_refits``) refits at most, fewer once
+    they settle (a pass that changes no root: the next ones would repeat it); 0: the start
     frame's quadratic alone. A last pass reads the rate at the root.
 
     The passes run on stopped values; the root is differentiated implicitly,
@@ -80,19 +81,21 @@ def exact_impact_time(gap: jax.Array, vn: jax.Array, an: jax.Array, dt: jax.Arra
     stopped = jax.lax.stop_gradient
     gap0, vn0, an0, dt0, touch0 = stopped((gap, vn, an, dt, touch))
 
-    def refit(i, carry):  # one pass (a loop, not unrolled: gap_at is a large part of the step's code)
-        t_hits, _ = carry
-        last = i == passes
+    def refit(carry):  # one pass (a loop, not unrolled: gap_at is a large part of the step's code)
+        i, t_hits, _, last, _ = carry
         # A root near 0 takes the curvature of the whole step; the last pass reads the root.
         at = jnp.where(last, t_hits[0], jnp.where(t_hits[0] > 1e-3 * dt0, t_hits[0], dt0))
         value, rate = stopped(jax.jvp(gap_at, (at,), (jnp.ones_like(at),)))
         fit_at = jnp.where(last, dt0, at)
         curvature = an0 + 2.0 * (value - (gap0 + vn0 * fit_at + 0.5 * an0 * fit_at * fit_at)) / (fit_at * fit_at)
         fitted = impact_time(gap0, vn0, curvature, dt0, touch0)
-        return jax.tree.map(lambda old, new: jnp.where(last, old, new), t_hits, fitted), rate
+        settled = jnp.all(fitted[0] == t_hits[0]) & jnp.all(fitted[1] == t_hits[1])
+        t_hits = jax.tree.map(lambda old, new: jnp.where(last, old, new), t_hits, fitted)
+        return i + 1, t_hits, rate, settled | (i + 1 >= passes), last
 
     first = impact_time(gap0, vn0, an0, dt0, touch0)
-    (t, hits), rate = jax.lax.fori_loop(0, passes + 1, refit, (first, jnp.zeros_like(gap)))
+    start = (jnp.int32(0), first, jnp.zeros_like(gap), jnp.asarray(passes == 0), jnp.asarray(False))
+    _, (t, hits), rate, _, _ = jax.lax.while_loop(lambda carry: ~carry[4], refit, start)
     root = hits & (t > 0) & (t < dt0) & (rate < 0)  # a crossing inside the step (not a touch, not the clip)
     shift = _root_shift(gap_at(t), jnp.where(root, rate, -1.0))
     return jnp.where(t >= dt0, dt, t + jnp.where(root, shift, 0.0)), hits, rate

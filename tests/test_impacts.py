@@ -187,3 +187,30 @@ def test_energy_bound_has_a_finite_derivative_where_it_is_idle():
 
     grad = jax.grad(total)(jnp.ones((2, 3)))
     assert np.all(np.isfinite(grad))
+
+
+@pytest.mark.smoke
+def test_refits_find_the_root_of_a_gap_the_quadratic_misses_and_then_settle():
+    # g(t) = g0 + v t + a t^2 / 2 + j t^3: the start frame's quadratic misses the cubic
+    # term; the refits converge to the exact root, stop once a pass changes nothing (more
+    # passes allowed give the same bits), and the root's derivative is the implicit one.
+    from jaxdda.integrate import exact_impact_time
+    g0, v, a, j, dt = 2e-3, -0.5, -10.0, 400.0, 0.01
+    coef = jnp.asarray([j, 0.5 * a, v])
+
+    def root(g, passes):
+        gap_at = lambda t: g + t * (coef[2] + t * (coef[1] + t * coef[0]))  # noqa: E731
+        t, hits, rate = exact_impact_time(g, jnp.full_like(g, v), jnp.full_like(g, a), jnp.asarray(dt),
+                                          jnp.zeros_like(g), gap_at, passes)
+        return t, (hits, rate)
+
+    g = jnp.asarray([g0, 0.5 * g0])
+    exact = [min(r.real for r in np.roots([j, 0.5 * a, v, x]) if abs(r.imag) < 1e-12 and r.real > 0) for x in g]
+    for passes in (6, 20, 60):  # each pass gains two digits here: settled after 8
+        t, (hits, rate) = jax.jit(root, static_argnums=1)(g, passes)
+        np.testing.assert_allclose(np.asarray(t), exact, rtol=1e-12)
+        assert np.all(np.asarray(hits)) and np.all(np.asarray(rate) < 0)
+    assert np.array_equal(np.asarray(t), np.asarray(jax.jit(root, static_argnums=1)(g, 20)[0]))
+    t, dt_dg = jax.jvp(lambda x: root(x, 6)[0], (g,), (jnp.ones_like(g),))
+    slope = v + t * (a + 3.0 * j * t)
+    np.testing.assert_allclose(np.asarray(dt_dg), -1.0 / np.asarray(slope), rtol=1e-10)
