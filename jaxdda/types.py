@@ -60,8 +60,8 @@ class StepOptions:
     """
 
     impact_instants: bool = True  # an impact at its instant t* inside the step; off: at the step's start (Moreau)
-    # refits of t* to the exact gap on the free path (0: the start frame's quadratic): six bring
-    # a disk crossing a ring's hole (test_physics) to 1e-12 m/s, four left 9e-10
+    # most refits of t* to the exact gap on the free path, fewer once they settle (0: the start
+    # frame's quadratic): six bring a disk crossing a ring's hole (test_physics) to 1e-12 m/s, four left 9e-10
     impact_refits: int = 6
     windows: bool = True  # an isolated pair's force acts from its t* only (windows and late kicks)
     discrete_gradient: bool = True  # the normal row is the discrete gradient of the gap (no work when closed)
