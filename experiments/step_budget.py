@@ -14,7 +14,8 @@ Figures per engine:
   on the machine disturbs less), and a pile of 1000 disks;
 - one rockfall step (compiled, single scene), median over 200 calls;
 - batched rockfall: ``vmap(step)`` in a ``lax.scan``, B scenarios, scenario-steps per second;
-- ``value_and_grad`` of a 10-step incline rollout (friction and start speed): compile time;
+- ``value_and_grad`` of a 10-step incline rollout (friction and start speed): compile time,
+  keeping every intermediate (``checkpoint=False``) and through ``rollout``'s default;
 - ``jaxdda run paper-7.5`` (4000 steps): wall time of the CLI in a new process;
 - fuzz: scene-steps per second of ``experiments/fuzz.py`` over a range of seeds.
 
@@ -36,7 +37,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
-FIGURES = ("ops", "kernels", "compile", "pile_compile", "single", "batched", "grad", "cli", "fuzz")
+FIGURES = ("ops", "kernels", "compile", "pile_compile", "single", "batched", "grad", "grad_default", "cli", "fuzz")
 
 
 # -- children: one figure of one engine, in a process importing that engine ---------------
@@ -162,7 +163,7 @@ def child_batched(args) -> dict:
             "overflow": bool(overflow)}
 
 
-def child_grad(args) -> dict:
+def child_grad(args, checkpoint: bool = False) -> dict:
     import dataclasses
     import math
 
@@ -177,7 +178,7 @@ def child_grad(args) -> dict:
     def f(theta):
         params = dataclasses.replace(scene.params, friction=jnp.full_like(scene.params.friction, theta["mu"]))
         state = dataclasses.replace(scene.state, velocity=scene.state.velocity.at[0, :2].set(theta["v0"] * down))
-        end, _ = jaxdda.rollout(scene.model, state, params, 10, checkpoint=False)
+        end, _ = jaxdda.rollout(scene.model, state, params, 10, checkpoint=checkpoint)
         return end.displacement[0] @ down
 
     theta = {"mu": jnp.asarray(0.3), "v0": jnp.asarray(0.5)}
@@ -189,6 +190,11 @@ def child_grad(args) -> dict:
     value, grad = exe(theta)
     return {"trace s": t1 - t0, "compile s": t2 - t1, "total s": t2 - t0, "value": float(value),
             "d/dmu": float(grad["mu"]), "d/dv0": float(grad["v0"])}
+
+
+def child_grad_default(args) -> dict:
+    """``child_grad`` through ``rollout``'s default, a checkpointed reverse pass."""
+    return child_grad(args, checkpoint=True)
 
 
 def child_cli(args) -> dict:
@@ -255,6 +261,7 @@ ROWS = [  # (label, figure, key, format)
     ("one rockfall step (ms, median)", "single", "step ms", "{:.3f}"),
     ("batched rockfall (scenario-steps/s)", "batched", "scenario-steps/s", "{:.3g}"),
     ("value_and_grad, 10-step incline: compile (s)", "grad", "total s", "{:.1f}"),
+    ("the same, rollout's default (checkpointed): compile (s)", "grad_default", "total s", "{:.1f}"),
     ("jaxdda run paper-7.5, wall (s)", "cli", "wall s", "{:.1f}"),
     ("fuzz (scene-steps/s)", "fuzz", "scene-steps/s", "{:.3g}"),
 ]
