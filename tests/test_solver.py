@@ -91,7 +91,6 @@ def test_solutions_meet_signorini_and_coulomb(solved):
     assert (pt * gt <= tol * np.abs(pt) + 1e-300).all()  # sliding: the force opposes the slip
 
 
-
 def _solver_loops(fun, *args) -> int:
     """While loops in the contact solve's functions of ``fun``'s lowered program."""
     loops, name = 0, ""

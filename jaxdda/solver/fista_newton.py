@@ -30,6 +30,7 @@ from jaxdda.solver.sets import ContactSets, linearize, project
 # The checkpoint name of a solve's result (``jax.ad_checkpoint.checkpoint_name``).
 SOLUTION = "contact_vi_solution"
 
+
 class Solution(NamedTuple):
     force: jax.Array  # (C, 3) normal force, shear force, rolling moment (or their impulses)
     iterations: jax.Array  # () int32 products with W: one per FISTA iteration, m + 1 per Newton step
