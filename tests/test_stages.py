@@ -120,6 +120,31 @@ def test_gap_change_is_exact_for_a_translation_and_a_turn(scene, staged):
             np.testing.assert_allclose(float(change[k]), math.hypot(1.002, 0.07) - 1.002, atol=1e-14)
 
 
+def test_a_normal_force_has_no_moment_about_a_round_sides_centre():
+    # Skewed frames, where the lever arm -r n is -r n only up to round-off: a disk's normal
+    # row has no rotation entry at all, on side a (outside a line, a disk, a ring's hole) and
+    # on side b (a disk, a ring's hole); a polygon vertex's keeps its lever.
+    from jaxdda.contact.kinematics import gap_frame, jacobians
+    from jaxdda.types import B_HOLE, B_LINE, B_POINT, Contacts
+
+    k = 5
+    zero2 = jnp.zeros((k, 2))
+    vertex = jnp.zeros((k, 2)).at[4].set([0.3, -0.2])  # the last contact: a polygon's vertex
+    edge_q, edge_e = zero2.at[0].set([-1.0, 0.1]), zero2.at[0].set([1.0, -0.25])
+    c = Contacts(valid=jnp.ones(k, bool), a=jnp.array([0, 0, 0, 1, 3], jnp.int32),
+                 b=jnp.array([1, 2, 2, 2, 1], jnp.int32), ra=jnp.array([0.37, 0.37, 0.37, 0.5, 0.0]),
+                 pa=vertex, btype=jnp.array([B_LINE, B_POINT, B_HOLE, B_HOLE, B_LINE], jnp.int32),
+                 rb=jnp.array([0.0, 0.8, 2.9, 2.9, 0.0]), qb=edge_q.at[4].set([-1.0, 0.1]),
+                 eb=edge_e.at[4].set([1.0, -0.25]), key=jnp.arange(k, dtype=jnp.int64), edge=jnp.zeros(k, jnp.int32))
+    centroid = jnp.array([[0.1234567, 0.987654], [0.3, -0.6], [1.1, 1.3], [0.2, 0.1]])
+    rotation = jnp.array([0.3, 0.71, -0.4, 1.9])
+    gap, normal, point = gap_frame(c, centroid, rotation)
+    assert np.all(np.abs(np.asarray(normal)).min(-1) > 0.05)  # no axis-aligned normal
+    jac = np.asarray(jacobians(c, normal, point, gap, centroid))  # (C, side, row, dof)
+    assert np.all(jac[:4, 0, 0, 2] == 0.0)  # side a: a disk
+    assert np.all(jac[1:4, 1, 0, 2] == 0.0)  # side b: a disk, a ring's hole
+    assert jac[0, 1, 0, 2] != 0.0 and jac[4, 0, 0, 2] != 0.0  # an edge's body, a vertex's: a lever
+
 @pytest.mark.smoke
 def test_warm_start_takes_the_force_of_the_same_feature_pair():
     key = jnp.asarray([7, 3, -1])

@@ -198,17 +198,22 @@ def jacobians_at(c: Contacts, normal: jax.Array, point: jax.Array, gap: jax.Arra
     nx, ny = normal[:, 0], normal[:, 1]
     zero, one = jnp.zeros_like(nx), jnp.ones_like(nx)
 
-    def rows(side: float, centroid: jax.Array) -> jax.Array:
+    def rows(side: float, centroid: jax.Array, round_: jax.Array) -> jax.Array:
         """(C, 3, 6): n.T(x), tau.T(x) (tau = (ny, -nx)) and the rolling row at a side's
         surface point x, T of eq. 7 (rigid bodies use its first three columns)."""
         dx = point[:, 0] + side * 0.5 * gap * nx - centroid[:, 0]
         dy = point[:, 1] + side * 0.5 * gap * ny - centroid[:, 1]
-        row_n = [nx, ny, ny * dx - nx * dy, nx * dx, ny * dy, 0.5 * (nx * dy + ny * dx)]
+        row_n = [nx, ny, jnp.where(round_, 0.0, ny * dx - nx * dy), nx * dx, ny * dy, 0.5 * (nx * dy + ny * dx)]
         row_t = [ny, -nx, -(nx * dx + ny * dy), ny * dx, -nx * dy, 0.5 * (ny * dy - nx * dx)]
         row_r = [zero, zero, one, zero, zero, zero]
         return side * jnp.stack([jnp.stack(r, -1) for r in (row_n, row_t, row_r)], -2)
 
-    return jnp.stack([rows(1.0, centroid_a), rows(-1.0, centroid_b)], 1)
+    # A side whose feature is its centroid (a disk's centre, a ring's hole) has its normal
+    # through it: the normal force has no moment about it, exactly (the lever arm, -r n up
+    # to round-off, would leave one of eps r p_n).
+    round_a = jnp.all(c.pa == 0.0, -1)
+    round_b = (c.btype != B_LINE) & jnp.all(c.qb == 0.0, -1)
+    return jnp.stack([rows(1.0, centroid_a, round_a), rows(-1.0, centroid_b, round_b)], 1)
 
 
 def discrete_gradient(jac: jax.Array, c: Contacts, d: jax.Array, change: jax.Array, reach: jax.Array) -> jax.Array:
