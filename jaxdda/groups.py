@@ -126,7 +126,7 @@ def _slots(flex: Flexibility, x: jax.Array) -> jax.Array:
 
 def apply(flex: Flexibility, x: jax.Array) -> jax.Array:
     """(N, 6) -> (N, 6): the inverse applied to per-body generalised forces."""
-    y = jnp.einsum("nij,nj->ni", flex.single, x)
+    y = jnp.sum(flex.single * x[:, None, :], -1)
     if flex.n_groups == 0:
         return y
     g, s = flex.members.shape

@@ -11,6 +11,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from jaxdda._fusion import materialize
 from jaxdda.types import B_HOLE, B_LINE, Contacts
 
 _TINY = 1e-300
@@ -172,8 +173,8 @@ def gap_change_at(c: Contacts, centroid: jax.Array, rotation: jax.Array, motion_
     strained = jnp.any(strain != 0, -1)
     dnx, dny = jnp.where(strained, uy - nx, dnx), jnp.where(strained, -ux - ny, dny)
     line_change = dnx * (rx + dx) + dny * (ry + dy) + (nx * dx + ny * dy) - d_ra
-    return jnp.where(c.btype == B_LINE, line_change,
-                     jnp.where(c.btype == B_HOLE, d_rb - d_ra - dist_change, dist_change - d_ra - d_rb))
+    return materialize(jnp.where(c.btype == B_LINE, line_change,
+                                 jnp.where(c.btype == B_HOLE, d_rb - d_ra - dist_change, dist_change - d_ra - d_rb)))
 
 
 @jax.jit
@@ -259,11 +260,11 @@ def discrete_gradient(jac: jax.Array, c: Contacts, d: jax.Array, change: jax.Arr
 def apply_jacobian(jac: jax.Array, c: Contacts, dofs: jax.Array) -> jax.Array:
     """(C, 3) = J d: relative (normal, shear, rolling) motion at each contact from body dofs
     (N, 6). Both sides in one gather and one product (each is a kernel of its own)."""
-    return jnp.einsum("ckij,ckj->ci", jac, _ends(c, dofs))
+    return jnp.sum(jac * _ends(c, dofs)[:, :, None, :], axis=(1, 3))
 
 
 def apply_jacobian_t(jac: jax.Array, c: Contacts, forces: jax.Array, n_bodies: int) -> jax.Array:
     """(N, 6) = J^T p: generalised forces on bodies from contact forces (C, 3) (eq. 9),
     both sides in one product and one scatter."""
-    f = jnp.einsum("ckij,ci->ckj", jac, forces)
+    f = jnp.sum(jac * forces[:, None, :, None], axis=2)
     return jax.ops.segment_sum(f.reshape(-1, f.shape[-1]), jnp.stack([c.a, c.b], -1).reshape(-1), n_bodies)

@@ -29,6 +29,8 @@ from typing import Callable, NamedTuple
 import jax
 import jax.numpy as jnp
 
+from jaxdda._fusion import materialize
+
 
 class ContactSets(NamedTuple):
     """Per-contact data of X(p); shared budgets are given once per pair, on both contacts."""
@@ -136,7 +138,7 @@ def project(y: jax.Array, scale: jax.Array, sets: ContactSets) -> jax.Array:
     (the partners' rows) and elementwise work.
     """
     y_q, data_q = _paired(y, scale, sets)
-    return _projection(y, y_q, scale, data_q, sets)
+    return materialize(_projection(y, y_q, scale, data_q, sets))
 
 
 def linearize(y: jax.Array, scale: jax.Array, sets: ContactSets) -> tuple[jax.Array, Callable[[jax.Array], jax.Array]]:
