@@ -28,8 +28,9 @@ def _packed(*columns: jax.Array) -> jax.Array:
     return jax.lax.optimization_barrier(jnp.stack(columns, -1))
 
 
+@jax.custom_jvp
 def _unit(x: jax.Array, y: jax.Array):
-    """Unit vector (x, y) and length of (x, y); (1, 0) where it vanishes (no NaN gradient).
+    """Unit vector (x, y) and length of (x, y); (1, 0) and 0 where it vanishes.
 
     The length comes from hypot, not sqrt: under jit XLA turns ``v / sqrt(s)`` into
     ``v * rsqrt(s)``, which makes axis-aligned normals inexact by one ulp; one ulp of a
@@ -39,6 +40,17 @@ def _unit(x: jax.Array, y: jax.Array):
     x, y = jnp.where(ok, x, 1.0), jnp.where(ok, y, 1.0)
     length = jnp.hypot(x, y)
     return jnp.where(ok, x / length, 1.0), jnp.where(ok, y / length, 0.0), jnp.where(ok, length, 0.0)
+
+
+@_unit.defjvp
+def _unit_jvp(primals, tangents):
+    """d|v| = u.dv and du = (dv - u (u.dv)) / |v| (0 where v vanishes): a few products,
+    where the derivative of hypot's scaled form is dozens of kernels once transposed."""
+    ux, uy, length = out = _unit(*primals)
+    dx, dy = tangents
+    along = ux * dx + uy * dy
+    inv = jnp.where(length > 0, 1.0 / jnp.where(length > 0, length, 1.0), 0.0)
+    return out, ((dx - ux * along) * inv, (dy - uy * along) * inv, jnp.where(length > 0, along, 0.0))
 
 
 def _rotate(cos: jax.Array, sin: jax.Array, x: jax.Array, y: jax.Array):
@@ -114,7 +126,7 @@ def _increment(cos: jax.Array, sin: jax.Array, turn: jax.Array, x: jax.Array, y:
 def _radius_change(radius: jax.Array, turn: jax.Array, strain: jax.Array) -> jax.Array:
     """Change of a particle's radius when x - c -> (R(turn) + eps I)(x - c) (eq. 17)."""
     eps = 0.5 * (strain[:, 0] + strain[:, 1])
-    scale = jnp.hypot(jnp.cos(turn) + eps, jnp.sin(turn)) - 1.0
+    scale = _unit(jnp.cos(turn) + eps, jnp.sin(turn))[2] - 1.0
     return jnp.where(eps == 0, 0.0, radius * scale)
 
 
