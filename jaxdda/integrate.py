@@ -59,6 +59,10 @@ def impact_time(gap: jax.Array, vn: jax.Array, an: jax.Array, dt: jax.Array, tou
     return jnp.minimum(t, dt), t <= dt * (1.0 + SIMULTANEITY)
 
 
+# The impact-time refits have settled once no root moves by more than this many ulp of dt.
+SETTLED_ULP = 8
+
+
 def exact_impact_time(gap: jax.Array, vn: jax.Array, an: jax.Array, dt: jax.Array, touch: jax.Array, gap_at,
                       passes: int):
     """``impact_time`` on the exact gap along the predicted path: ``gap_at(t)`` (C,) is the
@@ -72,7 +76,7 @@ def exact_impact_time(gap: jax.Array, vn: jax.Array, an: jax.Array, dt: jax.Arra
     gap at the current root (an + 2 (gap_at(t) - linear(t)) / t^2) and solves it again;
     from the end of the step where the linear model finds no root, so an impact it misses
     is found. ``passes`` (static, ``StepOptions.impact_refits``) refits at most, fewer once
-    they settle (a pass that changes no root: the next ones would repeat it); 0: the start
+    they settle (a pass that moves no root beyond round-off, ``SETTLED_ULP``); 0: the start
     frame's quadratic alone. A last pass reads the rate at the root.
 
     The passes run on stopped values; the root is differentiated implicitly,
@@ -89,7 +93,11 @@ def exact_impact_time(gap: jax.Array, vn: jax.Array, an: jax.Array, dt: jax.Arra
         fit_at = jnp.where(last, dt0, at)
         curvature = an0 + 2.0 * (value - (gap0 + vn0 * fit_at + 0.5 * an0 * fit_at * fit_at)) / (fit_at * fit_at)
         fitted = impact_time(gap0, vn0, curvature, dt0, touch0)
-        settled = jnp.all(fitted[0] == t_hits[0]) & jnp.all(fitted[1] == t_hits[1])
+        # Settled: no root moved by more than round-off (a few ulp of the step), none came or
+        # went. (Bit-equality never settles where the last pass flips an ulp, and under vmap
+        # one such scenario runs every pass for the batch.)
+        moved = ~(jnp.abs(fitted[0] - t_hits[0]) <= SETTLED_ULP * jnp.finfo(dt0.dtype).eps * dt0)
+        settled = ~jnp.any(moved) & jnp.all(fitted[1] == t_hits[1])
         t_hits = jax.tree.map(lambda old, new: jnp.where(last, old, new), t_hits, fitted)
         return i + 1, t_hits, rate, settled | (i + 1 >= passes), last
 
