@@ -3,12 +3,12 @@
 XLA:CPU fuses an elementwise producer into every consumer that reads it, recomputing
 it in each: a chain whose values are read several times is duplicated at every read,
 and the duplicates compound along the chain (ten steps of ``x = sin(x) + x / (x^2 + 2)``
-read three times at the end compile to 75 sines). The step's gap and projection
-chains were traced once and compiled up to three times over: that code is most of
-what LLVM compiles, and what a batched run computes. ``optimization_barrier`` does not
-stop it (XLA removes the barrier before fusion); a reduction does, as XLA does not
-fuse one into its consumers. ``materialize`` reduces over a stacked axis of size two
-that leaves x exact: max(x, -inf), including -0 and NaN.
+read three times at the end compile to 75 sines). The step's gap change and the
+projection were compiled, and computed in a batched run, up to three times over at each
+call site. ``optimization_barrier`` does not stop it (XLA removes the barrier before
+fusion); a reduction does, as XLA does not fuse one into its consumers. ``materialize``
+reduces over a stacked axis of size two that leaves x exact: max(x, -inf), including -0
+and NaN.
 """
 from __future__ import annotations
 
