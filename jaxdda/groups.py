@@ -139,27 +139,30 @@ def apply(flex: Flexibility, x: jax.Array) -> jax.Array:
     return y.at[target].add(yg, mode="drop")
 
 
-def diagonal(flex: Flexibility, a: jax.Array) -> jax.Array:
-    """(C, 6, 6): the diagonal block of the inverse for bodies ``a``."""
-    out = flex.single[a]
+def contact_diagonal(flex: Flexibility, jac: jax.Array, a: jax.Array, b: jax.Array) -> jax.Array:
+    """(C, 3): the diagonal of J D J^T for contact rows ``jac`` (C, 2, 3, 6) on bodies a, b,
+    D the inverse: each side's own block, and twice the coupling of the two sides where
+    they share a dof group (eq. 112)."""
+    def own(rows, blocks):
+        return jnp.einsum("cij,cjk,cik->ci", rows, blocks, rows)
+
+    diag = own(jac[:, 0], flex.single[a]) + own(jac[:, 1], flex.single[b])
     if flex.n_groups == 0:
-        return out
-    return out + _group_block(flex, a, a, flex.body_group[a] >= 0)
+        return diag
+    ga, gb = flex.body_group[a], flex.body_group[b]
+    return (diag + _group_quadratic(flex, jac[:, 0], a, jac[:, 0], a, ga >= 0)
+            + _group_quadratic(flex, jac[:, 1], b, jac[:, 1], b, gb >= 0)
+            + 2.0 * _group_quadratic(flex, jac[:, 0], a, jac[:, 1], b, (ga >= 0) & (ga == gb)))
 
 
-def coupling(flex: Flexibility, a: jax.Array, b: jax.Array) -> jax.Array | None:
-    """(C, 6, 6): the block coupling body a's dofs to body b's (a != b), nonzero only
-    within a group; None when there are no groups."""
-    if flex.n_groups == 0:
-        return None
-    ga = flex.body_group[a]
-    return _group_block(flex, a, b, (ga >= 0) & (ga == flex.body_group[b]))
-
-
-def _group_block(flex: Flexibility, a, b, where):
-    ga = jnp.maximum(flex.body_group[a], 0)
-    sa, sb = jnp.maximum(flex.body_slot[a], 0), jnp.maximum(flex.body_slot[b], 0)
-    da, db = flex.dofs[ga, sa], flex.dofs[ga, sb]  # (C, 6)
-    inner = flex.group[ga[:, None, None], da[:, :, None], db[:, None, :]]
-    block = jnp.einsum("cia,cab,cjb->cij", flex.maps[ga, sa], inner, flex.maps[ga, sb])
-    return jnp.where(where[:, None, None], block, 0.0)
+def _group_quadratic(flex: Flexibility, rows_x, x, rows_y, y, where) -> jax.Array:
+    """(C, 3): diag(J_x B J_y^T) for the group's block B = maps_x G maps_y^T between
+    bodies x and y, taken as (J_x maps_x) G (J_y maps_y)^T: the rows are mapped to the
+    group's dofs first, not the 6 x 6 block formed (a fifth of the products)."""
+    gx = jnp.maximum(flex.body_group[x], 0)
+    sx, sy = jnp.maximum(flex.body_slot[x], 0), jnp.maximum(flex.body_slot[y], 0)
+    dx, dy = flex.dofs[gx, sx], flex.dofs[gx, sy]  # (C, 6)
+    inner = flex.group[gx[:, None, None], dx[:, :, None], dy[:, None, :]]
+    lx = jnp.einsum("cri,cia->cra", rows_x, flex.maps[gx, sx])
+    ly = jnp.einsum("cri,cia->cra", rows_y, flex.maps[gx, sy])
+    return jnp.where(where[:, None], jnp.einsum("cra,cab,crb->cr", lx, inner, ly), 0.0)

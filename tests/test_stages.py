@@ -92,6 +92,28 @@ def test_respond_and_w_agree_with_dense_matrices(staged):
                                rtol=1e-12)
 
 
+
+def test_w_diagonal_within_a_dof_group_is_that_of_w():
+    # The bolted slope's blocks are one dof group, every contact within it: the diagonal of
+    # W = J D J^T that the solver scales by (own blocks and the two sides' coupling) against
+    # e^T W e from apply_w, which applies D through the group's own map.
+    scene = jaxdda.examples.get("bolted-slope")
+
+    def stages(model, state, params):
+        model, ops = assemble(model, state, params)
+        return ops, frame_stage.contact_frame(model, state, params)
+
+    ops, frame = jax.jit(stages)(scene.model, scene.state, scene.params)
+    c, valid = frame.contacts, np.flatnonzero(np.asarray(frame.contacts.valid))
+    group = np.asarray(ops.k_inv.body_group)
+    assert len(valid) and np.all(group[np.asarray(c.a)[valid]] == group[np.asarray(c.b)[valid]])
+    assert np.all(group[np.asarray(c.a)[valid]] >= 0)
+    operand, diag = flexibility(frame.jac, c, ops.k_inv)
+    n = c.valid.shape[0]
+    units = jnp.eye(3 * n).reshape(3 * n, n, 3)
+    w = jax.vmap(lambda e: apply_w(operand, e))(units).reshape(3 * n, 3 * n)
+    np.testing.assert_allclose(np.asarray(diag)[valid], np.diagonal(np.asarray(w)).reshape(n, 3)[valid], rtol=1e-13)
+
 def test_contact_frame_of_disks_over_a_floor(scene, staged):
     _, _, frame = staged
     c = frame.contacts

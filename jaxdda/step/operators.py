@@ -105,9 +105,4 @@ def apply_w(operand: WOperand, p: jax.Array) -> jax.Array:
 def flexibility(jac: jax.Array, c: Contacts, inv: Flexibility) -> tuple[WOperand, jax.Array]:
     """The operand of ``apply_w`` for W = J inv J^T, and W's diagonal (C, 3) (with the
     coupling of a contact's two bodies where they share a dof group, eq. 112)."""
-    diag = (jnp.einsum("cij,cjk,cik->ci", jac[:, 0], groups.diagonal(inv, c.a), jac[:, 0])
-            + jnp.einsum("cij,cjk,cik->ci", jac[:, 1], groups.diagonal(inv, c.b), jac[:, 1]))
-    cross = groups.coupling(inv, c.a, c.b)
-    if cross is not None:
-        diag = diag + 2.0 * jnp.einsum("cij,cjk,cik->ci", jac[:, 0], cross, jac[:, 1])
-    return WOperand(jac, c, inv), diag
+    return WOperand(jac, c, inv), groups.contact_diagonal(inv, jac, c.a, c.b)
