@@ -142,27 +142,27 @@ def apply(flex: Flexibility, x: jax.Array) -> jax.Array:
 def contact_diagonal(flex: Flexibility, jac: jax.Array, a: jax.Array, b: jax.Array) -> jax.Array:
     """(C, 3): the diagonal of J D J^T for contact rows ``jac`` (C, 2, 3, 6) on bodies a, b,
     D the inverse: each side's own block, and twice the coupling of the two sides where
-    they share a dof group (eq. 112)."""
+    they share a dof group (eq. 112). A group's block maps_x G maps_y^T is not formed:
+    each side's rows are mapped to its group's dofs once, L = J maps, and the diagonal is
+    that of L_x G L_y^T (a fifth of the products)."""
     def own(rows, blocks):
         return jnp.einsum("cij,cjk,cik->ci", rows, blocks, rows)
 
     diag = own(jac[:, 0], flex.single[a]) + own(jac[:, 1], flex.single[b])
     if flex.n_groups == 0:
         return diag
-    ga, gb = flex.body_group[a], flex.body_group[b]
-    return (diag + _group_quadratic(flex, jac[:, 0], a, jac[:, 0], a, ga >= 0)
-            + _group_quadratic(flex, jac[:, 1], b, jac[:, 1], b, gb >= 0)
-            + 2.0 * _group_quadratic(flex, jac[:, 0], a, jac[:, 1], b, (ga >= 0) & (ga == gb)))
 
+    def mapped(rows, body):  # the side's group, its dofs there (C, 6) and L (C, 3, 6)
+        g, slot = jnp.maximum(flex.body_group[body], 0), jnp.maximum(flex.body_slot[body], 0)
+        return g, flex.dofs[g, slot], jnp.einsum("cri,cia->cra", rows, flex.maps[g, slot])
 
-def _group_quadratic(flex: Flexibility, rows_x, x, rows_y, y, where) -> jax.Array:
-    """(C, 3): diag(J_x B J_y^T) for the group's block B = maps_x G maps_y^T between
-    bodies x and y, taken as (J_x maps_x) G (J_y maps_y)^T: the rows are mapped to the
-    group's dofs first, not the 6 x 6 block formed (a fifth of the products)."""
-    gx = jnp.maximum(flex.body_group[x], 0)
-    sx, sy = jnp.maximum(flex.body_slot[x], 0), jnp.maximum(flex.body_slot[y], 0)
-    dx, dy = flex.dofs[gx, sx], flex.dofs[gx, sy]  # (C, 6)
-    inner = flex.group[gx[:, None, None], dx[:, :, None], dy[:, None, :]]
-    lx = jnp.einsum("cri,cia->cra", rows_x, flex.maps[gx, sx])
-    ly = jnp.einsum("cri,cia->cra", rows_y, flex.maps[gx, sy])
-    return jnp.where(where[:, None], jnp.einsum("cra,cab,crb->cr", lx, inner, ly), 0.0)
+    def quadratic(g, dofs_x, l_x, dofs_y, l_y):  # diag(L_x G[dofs_x, dofs_y] L_y^T)
+        inner = flex.group[g[:, None, None], dofs_x[:, :, None], dofs_y[:, None, :]]
+        return jnp.einsum("cra,cab,crb->cr", l_x, inner, l_y)
+
+    (g_a, dofs_a, l_a), (g_b, dofs_b, l_b) = mapped(jac[:, 0], a), mapped(jac[:, 1], b)
+    in_a, in_b = flex.body_group[a] >= 0, flex.body_group[b] >= 0
+    shared = in_a & (flex.body_group[a] == flex.body_group[b])
+    return (diag + jnp.where(in_a[:, None], quadratic(g_a, dofs_a, l_a, dofs_a, l_a), 0.0)
+            + jnp.where(in_b[:, None], quadratic(g_b, dofs_b, l_b, dofs_b, l_b), 0.0)
+            + 2.0 * jnp.where(shared[:, None], quadratic(g_a, dofs_a, l_a, dofs_b, l_b), 0.0))

@@ -92,7 +92,6 @@ def test_respond_and_w_agree_with_dense_matrices(staged):
                                rtol=1e-12)
 
 
-
 def test_w_diagonal_within_a_dof_group_is_that_of_w():
     # The bolted slope's blocks are one dof group, every contact within it: the diagonal of
     # W = J D J^T that the solver scales by (own blocks and the two sides' coupling) against
@@ -113,6 +112,7 @@ def test_w_diagonal_within_a_dof_group_is_that_of_w():
     units = jnp.eye(3 * n).reshape(3 * n, n, 3)
     w = jax.vmap(lambda e: apply_w(operand, e))(units).reshape(3 * n, 3 * n)
     np.testing.assert_allclose(np.asarray(diag)[valid], np.diagonal(np.asarray(w)).reshape(n, 3)[valid], rtol=1e-13)
+
 
 def test_contact_frame_of_disks_over_a_floor(scene, staged):
     _, _, frame = staged
